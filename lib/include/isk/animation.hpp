@@ -1,0 +1,47 @@
+// Animation clips: per-joint keyframe channels, sampled at any time.
+//
+// Sampling interpolates translations and scales linearly and rotations with
+// spherical linear interpolation; before the first key and after the last the
+// end keys hold. A joint without a channel keeps its rest local transform.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "isk/skeleton.hpp"
+#include "isk/types.hpp"
+#include "isk/validation.hpp"
+
+namespace isk {
+
+struct JointChannel {
+  int joint = -1;
+  std::vector<double> translation_times;  // seconds, increasing
+  std::vector<Eigen::Vector3f> translations;
+  std::vector<double> rotation_times;
+  std::vector<Eigen::Quaternionf> rotations;
+  std::vector<double> scale_times;
+  std::vector<Eigen::Vector3f> scales;
+};
+
+struct AnimationClip {
+  std::string name;
+  double start = 0.0;     // seconds, time of the first key
+  double duration = 0.0;  // seconds
+  std::vector<JointChannel> channels;
+
+  // Local transforms of every joint at time t (seconds, clamped to the clip).
+  TransformList sampleLocal(const Skeleton& skeleton, double t) const;
+
+  // Checks joint indices, sorted finite times and finite keys; names the
+  // first bad channel.
+  Validation validate(const Skeleton& skeleton) const;
+};
+
+// A procedural clip bending every joint about an axis perpendicular to its
+// bone, from 0 to `max_angle_radians` over `duration` seconds. Used when an
+// asset has no clip and by the procedural rigs.
+AnimationClip makeBendClip(const Skeleton& skeleton, float max_angle_radians,
+                           double duration = 1.0);
+
+}  // namespace isk

@@ -1,0 +1,19 @@
+// Measurements of deformed meshes used by reports and tests.
+#pragma once
+
+#include "isk/types.hpp"
+
+namespace isk {
+
+// Enclosed volume by the divergence theorem (exact for closed meshes,
+// orientation-dependent sign; only ratios between frames of one mesh are
+// meaningful for open meshes). Accumulated in double.
+double enclosedVolume(const Matrix3Xf& positions, const TriangleMatrix& triangles);
+
+// Diagonal of the axis-aligned bounding box; 0 for no vertex.
+float boundingBoxDiagonal(const Matrix3Xf& positions);
+
+// Largest distance between matching rows of a and b (same shape).
+float maxVertexDistance(const Matrix3Xf& a, const Matrix3Xf& b);
+
+}  // namespace isk

@@ -1,0 +1,21 @@
+// From local joint transforms to the skinning transforms the kernels use.
+#pragma once
+
+#include "isk/skeleton.hpp"
+#include "isk/types.hpp"
+
+namespace isk {
+
+// Model-space global transforms, #joints (root_parent * ... * local).
+TransformList globalTransforms(const Skeleton& skeleton,
+                               const TransformList& locals);
+
+// Skinning transforms global * inverse_bind, #joints: model space (bind
+// pose) to model space (posed). Identity everywhere at the bind pose.
+TransformList skinningTransforms(const Skeleton& skeleton,
+                                 const TransformList& globals);
+
+// The bind pose: identity skinning transforms.
+TransformList bindPoseSkinning(const Skeleton& skeleton);
+
+}  // namespace isk

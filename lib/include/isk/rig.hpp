@@ -1,0 +1,36 @@
+// A skinned character: mesh, skeleton, weights and clips, as loaded or built.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "isk/animation.hpp"
+#include "isk/mesh.hpp"
+#include "isk/skeleton.hpp"
+#include "isk/skin_weights.hpp"
+#include "isk/validation.hpp"
+
+namespace isk {
+
+struct Rig {
+  std::string source;  // file path or "builtin:NAME"
+  Mesh mesh;
+  Skeleton skeleton;
+  SkinWeights weights;
+  std::vector<AnimationClip> clips;
+  // Things fixed or ignored while loading (weights normalized, meshes
+  // skipped...), one sentence each.
+  std::vector<std::string> warnings;
+
+  // Validates every part and their agreement (weight rows = vertices, joint
+  // indices in range); the reason names the vertex, joint or clip.
+  Validation validate() const;
+
+  // Index of the clip named `name`, -1 if none.
+  int findClip(const std::string& name) const;
+
+  // Diagonal of the mesh's axis-aligned bounding box (0 for an empty mesh).
+  float boundingBoxDiagonal() const;
+};
+
+}  // namespace isk

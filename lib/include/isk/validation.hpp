@@ -1,0 +1,36 @@
+// The result of a validate() step: either fine, or the reason it is not.
+//
+// Jobs and builders validate their inputs before they run (ozz-animation's
+// style); a failed validation says what is wrong in words a user can act on.
+#pragma once
+
+#include <string>
+#include <utility>
+
+namespace isk {
+
+class Validation {
+ public:
+  static Validation ok() { return Validation(); }
+  static Validation fail(std::string reason) {
+    Validation v;
+    v.ok_ = false;
+    v.reason_ = std::move(reason);
+    return v;
+  }
+
+  explicit operator bool() const { return ok_; }
+  bool isOk() const { return ok_; }
+  // Empty when isOk().
+  const std::string& reason() const { return reason_; }
+
+  // Throws isk::Error(kInvalidArgument) with `context: reason` when not ok.
+  void throwIfFailed(const std::string& context) const;
+
+ private:
+  Validation() = default;
+  bool ok_ = true;
+  std::string reason_;
+};
+
+}  // namespace isk
