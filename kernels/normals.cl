@@ -1,0 +1,30 @@
+// Area-weighted vertex normals from deformed positions. OpenCL C 1.2,
+// self-contained. CPU reference: lib/src/vertex_normals.cpp.
+//
+// A gather per vertex over its incident triangles (compressed rows built once
+// on the host), so no atomics: each vertex sums the cross products of its
+// triangles in adjacency order and normalizes; a vanishing sum takes the
+// fallback normal (the skinned normal).
+
+__kernel void vertex_normals(const uint vertex_count,
+                             __global const float* positions,
+                             __global const int* triangles,
+                             __global const uint* adjacency_offsets,
+                             __global const uint* adjacency_triangles,
+                             __global const float* fallback_normals,
+                             __global float* out_normals) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  float3 sum = (float3)(0.0f);
+  const uint end = adjacency_offsets[v + 1];
+  for (uint i = adjacency_offsets[v]; i < end; ++i) {
+    const uint t = adjacency_triangles[i];
+    const float3 a = vload3(triangles[3 * t], positions);
+    const float3 b = vload3(triangles[3 * t + 1], positions);
+    const float3 c = vload3(triangles[3 * t + 2], positions);
+    sum += cross(b - a, c - a);
+  }
+  const float len = sqrt(dot(sum, sum));
+  vstore3(len > FLT_MIN ? sum / len : vload3(v, fallback_normals), v,
+          out_normals);
+}

@@ -1,0 +1,89 @@
+// Geometric skinning: linear blend (LBS) and dual quaternion (DQS, Kavan et
+// al. 2008). OpenCL C 1.2, self-contained. CPU reference: lib/src/skinning.cpp.
+//
+// Layout: positions/normals are packed float triples (vload3/vstore3);
+// influences are compressed rows (offsets[v] .. offsets[v+1]-1), sorted by
+// decreasing weight so the first one is the DQS pivot.
+// LBS joints: 3 float4 rows of the 3x4 matrix each.
+// DQS joints: 2 float4 each, real (x y z w) then dual (x y z w).
+
+// Rotates v by the unit quaternion q (xyz = vector part, w = scalar).
+float3 quat_rotate(float4 q, float3 v) {
+  const float3 u = q.xyz;
+  const float3 t = 2.0f * cross(u, v);
+  return v + q.w * t + cross(u, t);
+}
+
+__kernel void skin_lbs(const uint vertex_count,
+                       __global const float* rest_positions,
+                       __global const float* rest_normals,
+                       __global const uint* influence_offsets,
+                       __global const uint* influence_joints,
+                       __global const float* influence_weights,
+                       __global const float4* joint_rows,
+                       __global float* out_positions,
+                       __global float* out_normals) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  float4 r0 = (float4)(0.0f);
+  float4 r1 = (float4)(0.0f);
+  float4 r2 = (float4)(0.0f);
+  const uint end = influence_offsets[v + 1];
+  for (uint i = influence_offsets[v]; i < end; ++i) {
+    const float w = influence_weights[i];
+    const uint j = influence_joints[i];
+    r0 += w * joint_rows[3 * j];
+    r1 += w * joint_rows[3 * j + 1];
+    r2 += w * joint_rows[3 * j + 2];
+  }
+  const float4 p = (float4)(vload3(v, rest_positions), 1.0f);
+  vstore3((float3)(dot(r0, p), dot(r1, p), dot(r2, p)), v, out_positions);
+
+  // Normals by the cofactor matrix (inverse transpose up to scale).
+  const float3 n = vload3(v, rest_normals);
+  const float3 a = r0.xyz;
+  const float3 b = r1.xyz;
+  const float3 c = r2.xyz;
+  float3 m = (float3)(dot(cross(b, c), n), dot(cross(c, a), n),
+                      dot(cross(a, b), n));
+  const float len = sqrt(dot(m, m));
+  m = len > FLT_MIN ? m / len : n;
+  vstore3(m, v, out_normals);
+}
+
+__kernel void skin_dqs(const uint vertex_count,
+                       __global const float* rest_positions,
+                       __global const float* rest_normals,
+                       __global const uint* influence_offsets,
+                       __global const uint* influence_joints,
+                       __global const float* influence_weights,
+                       __global const float4* joint_dqs,
+                       __global float* out_positions,
+                       __global float* out_normals) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const uint begin = influence_offsets[v];
+  const uint end = influence_offsets[v + 1];
+  const float4 pivot = joint_dqs[2 * influence_joints[begin]];
+  float4 real = (float4)(0.0f);
+  float4 dual = (float4)(0.0f);
+  for (uint i = begin; i < end; ++i) {
+    const uint j = influence_joints[i];
+    const float4 qr = joint_dqs[2 * j];
+    const float4 qd = joint_dqs[2 * j + 1];
+    // Antipodality: q and -q are the same rotation; blend on the pivot's side.
+    const float w = dot(qr, pivot) < 0.0f ? -influence_weights[i]
+                                          : influence_weights[i];
+    real += w * qr;
+    dual += w * qd;
+  }
+  const float norm = sqrt(dot(real, real));
+  real /= norm;
+  dual /= norm;
+  // t = 2 * vec(dual * conj(real))
+  const float3 t =
+      2.0f * (real.w * dual.xyz - dual.w * real.xyz + cross(real.xyz, dual.xyz));
+  const float3 p = vload3(v, rest_positions);
+  vstore3(quat_rotate(real, p) + t, v, out_positions);
+  vstore3(quat_rotate(real, vload3(v, rest_normals)), v, out_normals);
+}

@@ -1,0 +1,96 @@
+// OpenCL runtime: device selection, context and queue, cache of built programs.
+//
+// Device selection (ClContext::create):
+//   ""/"auto"   the ISK_DEVICE environment variable if set, else the first GPU,
+//               else the first CPU device (such as PoCL), else any device;
+//   "gpu"/"cpu" the first device of that type;
+//   "N" or "opencl:N"  device N in listClDevices() order (platforms in ICD
+//               order, devices in platform order).
+// An application can hand in its own context, device and queue instead
+// (ClContext::wrap); the library then retains them and never creates others.
+//
+// Built programs are cached per ClContext (one context + device) and per
+// build options. Build options come from a small per-device table: every
+// build gets -cl-std=CL1.2 and ISK_DEVICE_GPU=0/1.
+//
+// Every OpenCL failure is thrown as isk::Error(kOpenCl) whose message names
+// the failing OpenCL call and its status name; build failures carry the log.
+#pragma once
+
+#include <CL/opencl.hpp>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace isk {
+
+struct ClDeviceInfo {
+  int index = -1;  // position in listClDevices()
+  std::string platform;
+  std::string name;
+  std::string version;  // CL_DEVICE_VERSION
+  bool is_gpu = false;
+  bool is_cpu = false;
+  // "platform / device".
+  std::string describe() const { return platform + " / " + name; }
+};
+
+// Every device of every platform, in selection order. An empty list when no
+// platform is installed (never throws for that).
+std::vector<ClDeviceInfo> listClDevices();
+
+class ClContext {
+ public:
+  // Picks a device as described above and creates a context and an in-order
+  // queue with profiling enabled. Throws isk::Error(kNoDevice) when nothing
+  // matches (the message lists the devices seen) or kInvalidArgument for a
+  // malformed selection.
+  static std::shared_ptr<ClContext> create(const std::string& selection = "");
+
+  // Uses the application's objects (retained, not copied). The queue must
+  // belong to the context and the device. Throws isk::Error(kInvalidArgument)
+  // when they do not match, kOpenCl when a query fails.
+  static std::shared_ptr<ClContext> wrap(cl_context context, cl_device_id device,
+                                         cl_command_queue queue);
+
+  const cl::Context& context() const { return context_; }
+  const cl::Device& device() const { return device_; }
+  const cl::CommandQueue& queue() const { return queue_; }
+  const ClDeviceInfo& info() const { return info_; }
+  // True when the queue records profiling info (events give kernel times).
+  bool profilingEnabled() const { return profiling_; }
+
+  // The built program of embedded kernel file `kernel_file` (name without
+  // .cl), built with buildOptions(extra_options); cached.
+  cl::Program program(const std::string& kernel_file,
+                      const std::string& extra_options = "");
+  std::string buildOptions(const std::string& extra_options = "") const;
+  int cachedProgramCount() const;
+
+ private:
+  ClContext() = default;
+  void initInfo();
+
+  cl::Context context_;
+  cl::Device device_;
+  cl::CommandQueue queue_;
+  ClDeviceInfo info_;
+  bool profiling_ = false;
+  mutable std::mutex mutex_;
+  std::map<std::string, cl::Program> programs_;
+};
+
+// Names of the embedded kernel files (without .cl).
+std::vector<std::string> embeddedKernelNames();
+// Source of an embedded kernel file; throws isk::Error(kInvalidArgument).
+std::string embeddedKernelSource(const std::string& kernel_file);
+
+// Converts an OpenCL C++ binding exception into isk::Error naming the call.
+[[noreturn]] void throwClError(const cl::Error& error, const std::string& what);
+
+// Milliseconds between an event's start and end (0 when profiling is off).
+double eventMilliseconds(const cl::Event& event);
+
+}  // namespace isk

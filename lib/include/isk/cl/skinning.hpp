@@ -1,0 +1,69 @@
+// Geometric skinning and vertex normals on an OpenCL device.
+//
+// Host class of kernels/skinning.cl and kernels/normals.cl: uploads a mesh's
+// static data once, then per frame uploads only the joint transforms, runs
+// the skinning kernel (LBS or DQS) and the normals kernel, and leaves the
+// results in device buffers (read them back, or hand the buffers to your
+// renderer). Results match the CPU reference (isk/skinning.hpp and
+// isk/vertex_normals.hpp) up to float rounding.
+#pragma once
+
+#include <memory>
+
+#include "isk/cl/runtime.hpp"
+#include "isk/mesh.hpp"
+#include "isk/skin_weights.hpp"
+#include "isk/skinning.hpp"
+#include "isk/types.hpp"
+
+namespace isk {
+
+struct ClStageTimes {
+  double upload_ms = 0;    // joint transforms to the device
+  double skinning_ms = 0;  // skinning kernel
+  double normals_ms = 0;   // normals kernel (0 when not recomputed)
+  double readback_ms = 0;  // last readPositions + readNormals
+};
+
+class ClSkinning {
+ public:
+  // Validates the mesh and weights (isk::Error kInvalidArgument) and uploads
+  // them; `joint_count` is the length of the transform lists run() takes.
+  ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
+             const SkinWeights& weights, int joint_count);
+
+  // Skins the rest mesh with `skinning` (#joints transforms) and, when asked,
+  // recomputes area-weighted normals from the skinned positions; otherwise
+  // the normals are the skinned rest normals. Returns when the device is done
+  // (so that lastTimes() holds this frame's stage times).
+  void run(SkinningMethod method, const TransformList& skinning,
+           bool recompute_normals = true);
+
+  // Blocking reads of the last run's results (#V by 3).
+  void readPositions(Matrix3Xf& out);
+  void readNormals(Matrix3Xf& out);
+
+  // Device buffers of the last results: #V * 3 floats (x y z per vertex).
+  const cl::Buffer& positionsBuffer() const { return out_positions_; }
+  const cl::Buffer& normalsBuffer() const { return out_normals_; }
+
+  // Stage times of the last run and reads: from profiling events when the
+  // queue has profiling, else host wall time around finished commands.
+  const ClStageTimes& lastTimes() const { return times_; }
+  ClContext& context() { return *context_; }
+  int vertexCount() const { return vertex_count_; }
+
+ private:
+  std::shared_ptr<ClContext> context_;
+  int vertex_count_ = 0;
+  int joint_count_ = 0;
+  cl::Kernel lbs_kernel_, dqs_kernel_, normals_kernel_;
+  cl::Buffer rest_positions_, rest_normals_;
+  cl::Buffer influence_offsets_, influence_joints_, influence_weights_;
+  cl::Buffer triangles_, adjacency_offsets_, adjacency_triangles_;
+  cl::Buffer joint_transforms_;
+  cl::Buffer skinned_normals_, out_positions_, out_normals_;
+  ClStageTimes times_;
+};
+
+}  // namespace isk

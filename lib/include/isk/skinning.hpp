@@ -1,0 +1,45 @@
+// Geometric skinning, CPU reference: linear blend skinning (LBS) and dual
+// quaternion skinning (DQS, Kavan et al. 2008).
+//
+// The OpenCL kernels in kernels/skinning.cl do the same job with the same
+// formulas; tests compare the two.
+//
+// DQS: per vertex the first (largest) influence's rotation is the pivot; any
+// joint dual quaternion whose real part has a negative dot product with it is
+// negated before blending; the blend is divided by the norm of its real part.
+// LBS normals use the cofactor matrix of the blended linear part (the inverse
+// transpose up to scale), then are normalized.
+#pragma once
+
+#include <string>
+
+#include "isk/skin_weights.hpp"
+#include "isk/types.hpp"
+#include "isk/validation.hpp"
+
+namespace isk {
+
+enum class SkinningMethod { kLinearBlend, kDualQuaternion };
+
+const char* skinningMethodName(SkinningMethod method);  // "lbs" / "dqs"
+
+// Packs skinning transforms for the kernels: LBS takes the top 3 rows of each
+// 4x4 matrix (12 floats per joint, row-major), DQS 8 floats per joint.
+std::vector<float> packJointTransforms(SkinningMethod method,
+                                       const TransformList& skinning);
+
+struct SkinningJob {
+  SkinningMethod method = SkinningMethod::kDualQuaternion;
+  const Matrix3Xf* rest_positions = nullptr;  // #V by 3, bind pose
+  const Matrix3Xf* rest_normals = nullptr;    // #V by 3
+  const SkinWeights* weights = nullptr;       // #V rows
+  const TransformList* skinning = nullptr;    // #joints
+  Matrix3Xf* out_positions = nullptr;         // resized to #V by 3
+  Matrix3Xf* out_normals = nullptr;           // resized to #V by 3
+
+  Validation validate() const;
+  // Throws isk::Error(kInvalidArgument) when validate() fails.
+  void run() const;
+};
+
+}  // namespace isk

@@ -1,0 +1,38 @@
+// Area-weighted vertex normals of a triangle mesh, CPU reference of
+// kernels/normals.cl.
+//
+// Each vertex sums the (unnormalized) cross products of its incident
+// triangles, read through a vertex-to-triangle adjacency built once, and
+// normalizes. A vertex whose sum vanishes (no triangle, or only degenerate
+// ones) takes its fallback normal instead.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "isk/types.hpp"
+#include "isk/validation.hpp"
+
+namespace isk {
+
+// Vertex -> incident triangles, compressed rows.
+struct VertexTriangleAdjacency {
+  std::vector<uint32_t> offsets;    // #V + 1
+  std::vector<uint32_t> triangles;  // 3 * #F entries
+
+  static VertexTriangleAdjacency build(const TriangleMatrix& triangles,
+                                       int vertex_count);
+};
+
+struct VertexNormalsJob {
+  const Matrix3Xf* positions = nullptr;                 // #V by 3
+  const TriangleMatrix* triangles = nullptr;            // #F by 3
+  const VertexTriangleAdjacency* adjacency = nullptr;   // built for them
+  const Matrix3Xf* fallback_normals = nullptr;          // #V by 3
+  Matrix3Xf* out_normals = nullptr;                     // resized to #V by 3
+
+  Validation validate() const;
+  void run() const;
+};
+
+}  // namespace isk

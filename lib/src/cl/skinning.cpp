@@ -1,0 +1,173 @@
+#include "isk/cl/skinning.hpp"
+
+#include <chrono>
+#include <string>
+
+#include "isk/error.hpp"
+#include "isk/vertex_normals.hpp"
+
+namespace isk {
+namespace {
+
+size_t roundUp(size_t n, size_t multiple) { return (n + multiple - 1) / multiple * multiple; }
+
+template <typename T>
+cl::Buffer uploadReadOnly(const cl::Context& context, const std::vector<T>& data) {
+  // A zero-sized buffer is invalid in OpenCL: keep one element at least.
+  std::vector<T> padded = data.empty() ? std::vector<T>(1) : data;
+  return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                    padded.size() * sizeof(T), padded.data());
+}
+
+double since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+}  // namespace
+
+ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
+                       const SkinWeights& weights, int joint_count)
+    : context_(std::move(context)),
+      vertex_count_(mesh.vertexCount()),
+      joint_count_(joint_count) {
+  if (!context_) throw Error(ErrorCode::kInvalidArgument, "ClSkinning: no context");
+  mesh.validate().throwIfFailed("ClSkinning mesh");
+  weights.validate(vertex_count_, joint_count).throwIfFailed("ClSkinning weights");
+  const VertexTriangleAdjacency adjacency =
+      VertexTriangleAdjacency::build(mesh.triangles, vertex_count_);
+  const cl::Context& ctx = context_->context();
+  try {
+    cl::Program skinning = context_->program("skinning");
+    cl::Program normals = context_->program("normals");
+    lbs_kernel_ = cl::Kernel(skinning, "skin_lbs");
+    dqs_kernel_ = cl::Kernel(skinning, "skin_dqs");
+    normals_kernel_ = cl::Kernel(normals, "vertex_normals");
+    const float* p = mesh.positions.data();
+    const float* n = mesh.normals.data();
+    const size_t floats = 3 * static_cast<size_t>(vertex_count_);
+    rest_positions_ = uploadReadOnly(ctx, std::vector<float>(p, p + floats));
+    rest_normals_ = uploadReadOnly(ctx, std::vector<float>(n, n + floats));
+    influence_offsets_ = uploadReadOnly(ctx, weights.offsets);
+    influence_joints_ = uploadReadOnly(ctx, weights.joints);
+    influence_weights_ = uploadReadOnly(ctx, weights.weights);
+    const int32_t* t = mesh.triangles.data();
+    triangles_ = uploadReadOnly(
+        ctx, std::vector<int32_t>(t, t + 3 * static_cast<size_t>(mesh.triangleCount())));
+    adjacency_offsets_ = uploadReadOnly(ctx, adjacency.offsets);
+    adjacency_triangles_ = uploadReadOnly(ctx, adjacency.triangles);
+    // Large enough for either layout (LBS 12 floats per joint, DQS 8).
+    joint_transforms_ = cl::Buffer(ctx, CL_MEM_READ_ONLY,
+                                   12 * sizeof(float) * std::max(joint_count, 1));
+    skinned_normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
+    out_positions_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
+    out_normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSkinning: uploading the mesh to " + context_->info().describe());
+  }
+}
+
+void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
+                     bool recompute_normals) {
+  if (static_cast<int>(skinning.size()) != joint_count_) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "ClSkinning::run: " + std::to_string(skinning.size()) +
+                    " joint transforms given for a skeleton of " +
+                    std::to_string(joint_count_) + " joints");
+  }
+  for (size_t j = 0; j < skinning.size(); ++j) {
+    if (!skinning[j].matrix().allFinite()) {
+      throw Error(ErrorCode::kInvalidArgument, "ClSkinning::run: the transform of joint " +
+                                                   std::to_string(j) + " is not finite");
+    }
+  }
+  const std::vector<float> packed = packJointTransforms(method, skinning);
+  const cl::CommandQueue& queue = context_->queue();
+  const bool profiling = context_->profilingEnabled();
+  const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
+  const cl_uint n = static_cast<cl_uint>(vertex_count_);
+  times_ = ClStageTimes();
+  try {
+    auto start = std::chrono::steady_clock::now();
+    cl::Event upload, skin, normals;
+    queue.enqueueWriteBuffer(joint_transforms_, CL_FALSE, 0, packed.size() * sizeof(float),
+                             packed.data(), nullptr, &upload);
+    // The host array dies with this call: the copy must be done before return.
+    upload.wait();
+    times_.upload_ms = profiling ? eventMilliseconds(upload) : since(start);
+
+    cl::Kernel& kernel =
+        method == SkinningMethod::kLinearBlend ? lbs_kernel_ : dqs_kernel_;
+    const cl::Buffer& normals_target = recompute_normals ? skinned_normals_ : out_normals_;
+    kernel.setArg(0, n);
+    kernel.setArg(1, rest_positions_);
+    kernel.setArg(2, rest_normals_);
+    kernel.setArg(3, influence_offsets_);
+    kernel.setArg(4, influence_joints_);
+    kernel.setArg(5, influence_weights_);
+    kernel.setArg(6, joint_transforms_);
+    kernel.setArg(7, out_positions_);
+    kernel.setArg(8, normals_target);
+    start = std::chrono::steady_clock::now();
+    queue.enqueueNDRangeKernel(kernel, cl::NullRange, global, cl::NullRange, nullptr, &skin);
+    if (!profiling) {
+      skin.wait();
+      times_.skinning_ms = since(start);
+    }
+    if (recompute_normals) {
+      normals_kernel_.setArg(0, n);
+      normals_kernel_.setArg(1, out_positions_);
+      normals_kernel_.setArg(2, triangles_);
+      normals_kernel_.setArg(3, adjacency_offsets_);
+      normals_kernel_.setArg(4, adjacency_triangles_);
+      normals_kernel_.setArg(5, skinned_normals_);
+      normals_kernel_.setArg(6, out_normals_);
+      start = std::chrono::steady_clock::now();
+      queue.enqueueNDRangeKernel(normals_kernel_, cl::NullRange, global, cl::NullRange,
+                                 nullptr, &normals);
+      if (!profiling) {
+        normals.wait();
+        times_.normals_ms = since(start);
+      }
+    }
+    if (profiling) {
+      (recompute_normals ? normals : skin).wait();
+      times_.skinning_ms = eventMilliseconds(skin);
+      times_.normals_ms = recompute_normals ? eventMilliseconds(normals) : 0.0;
+    }
+  } catch (const cl::Error& e) {
+    throwClError(e, std::string("ClSkinning::run (") + skinningMethodName(method) + ") on " +
+                        context_->info().describe());
+  }
+}
+
+void ClSkinning::readPositions(Matrix3Xf& out) {
+  out.resize(vertex_count_, 3);
+  try {
+    cl::Event read;
+    const auto start = std::chrono::steady_clock::now();
+    context_->queue().enqueueReadBuffer(out_positions_, CL_TRUE, 0,
+                                        out.size() * sizeof(float), out.data(), nullptr,
+                                        &read);
+    times_.readback_ms = context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSkinning::readPositions");
+  }
+}
+
+void ClSkinning::readNormals(Matrix3Xf& out) {
+  out.resize(vertex_count_, 3);
+  try {
+    cl::Event read;
+    const auto start = std::chrono::steady_clock::now();
+    context_->queue().enqueueReadBuffer(out_normals_, CL_TRUE, 0,
+                                        out.size() * sizeof(float), out.data(), nullptr,
+                                        &read);
+    times_.readback_ms +=
+        context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSkinning::readNormals");
+  }
+}
+
+}  // namespace isk

@@ -1,0 +1,39 @@
+// Shared helpers of the test suite: assets, a shared OpenCL context, and
+// comparisons that report the index of the first mismatch (libigl's style).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "isk/cl/runtime.hpp"
+#include "isk/rig.hpp"
+#include "isk/types.hpp"
+
+namespace isk::test {
+
+// Every asset of the shared data folder that the tests run on.
+const std::vector<std::string>& assetNames();
+
+// Loads an asset of the data folder (cached per process; each test copies).
+const Rig& loadAsset(const std::string& file);
+
+// True when the data folder exists. When it does not, asset tests call
+// GTEST_SKIP with a message naming the folder and what was skipped.
+bool haveAssets();
+std::string missingAssetsMessage(const std::string& what);
+
+// One context for the whole test process (programs are built once): the
+// device ClContext::create("") picks (PoCL in CI).
+std::shared_ptr<ClContext> sharedContext();
+
+// Largest row distance between a and b, and the row where it occurs.
+struct RowMismatch {
+  float distance = 0.f;
+  int row = -1;
+};
+RowMismatch largestRowDistance(const Matrix3Xf& a, const Matrix3Xf& b);
+
+}  // namespace isk::test
