@@ -1,0 +1,24 @@
+// Writing deformed frames as OBJ (text) or PLY (binary little endian).
+//
+// The writers are ours rather than OpenMesh's: OpenMesh's halfedge mesh drops
+// non-manifold triangles ("complex edge") on insertion, and an export must
+// keep every triangle and the input vertex order. Files are written to a
+// temporary name beside the target and renamed when complete, so a failure
+// never leaves a partial file under the final name.
+#pragma once
+
+#include <string>
+
+#include "isk/types.hpp"
+
+namespace isk {
+
+enum class MeshFormat { kObj, kPly };
+
+// Throws isk::Error(kIo) naming the path when it cannot be written.
+// `normals` may be null (no normals written).
+void writeMesh(const std::string& path, MeshFormat format,
+               const Matrix3Xf& positions, const Matrix3Xf* normals,
+               const TriangleMatrix& triangles);
+
+}  // namespace isk

@@ -1,0 +1,363 @@
+#include "skin_runner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <regex>
+#include <sstream>
+
+#ifdef _WIN32
+#include <process.h>
+#else
+#include <unistd.h>
+#endif
+
+#include "isk/error.hpp"
+#include "isk/import.hpp"
+#include "isk/mesh_metrics.hpp"
+#include "isk/pose.hpp"
+#include "isk/procedural.hpp"
+
+namespace isk::samples {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kBuiltinPrefix = "builtin:";
+constexpr double kPi = 3.14159265358979323846;
+
+using Clock = std::chrono::steady_clock;
+
+double millisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start)
+      .count();
+}
+
+int processId() {
+#ifdef _WIN32
+  return _getpid();
+#else
+  return static_cast<int>(getpid());
+#endif
+}
+
+bool parseIndex(const std::string& text, int* index) {
+  if (text.empty() || text.size() > 9) return false;
+  for (char c : text) {
+    if (c < '0' || c > '9') return false;
+  }
+  *index = std::stoi(text);
+  return true;
+}
+
+std::string describeClips(const Rig& rig) {
+  if (rig.clips.empty()) return "none";
+  std::ostringstream out;
+  for (size_t i = 0; i < rig.clips.size(); ++i) {
+    out << (i ? ", " : "") << i << ": \"" << rig.clips[i].name << "\" ("
+        << rig.clips[i].duration << " s)";
+  }
+  return out.str();
+}
+
+// Names our own frame files (and their temporaries), so --overwrite never
+// removes anything else.
+bool isFrameFileName(const std::string& name) {
+  static const std::regex pattern(R"(frame_[0-9]+\.(obj|ply)(\.tmp-[0-9]+)?)");
+  return std::regex_match(name, pattern);
+}
+
+bool samePath(const fs::path& a, const fs::path& b) {
+  std::error_code ec;
+  const bool same = fs::equivalent(a, b, ec);
+  return !ec && same;
+}
+
+}  // namespace
+
+Rig loadRig(const std::string& input) {
+  const std::string prefix = kBuiltinPrefix;
+  if (input.compare(0, prefix.size(), prefix) == 0) {
+    return makeBuiltinRig(input.substr(prefix.size()));
+  }
+  return importRig(input);
+}
+
+AnimationClip selectClip(const Rig& rig, const std::string& spec,
+                         std::string* note) {
+  if (rig.clips.empty()) {
+    if (!spec.empty()) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "clip '" + spec + "': " + rig.source +
+                      " has no animation clip (leave --clip out to use a "
+                      "procedural bend)");
+    }
+    if (note) {
+      *note = rig.source +
+              " has no animation clip: using a 90-degree bend of every "
+              "joint over 1 s";
+    }
+    return makeBendClip(rig.skeleton, static_cast<float>(kPi / 2), 1.0);
+  }
+  if (spec.empty()) return rig.clips[0];
+  if (const int by_name = rig.findClip(spec); by_name >= 0) {
+    return rig.clips[by_name];
+  }
+  int index = -1;
+  if (parseIndex(spec, &index) && index < static_cast<int>(rig.clips.size())) {
+    return rig.clips[index];
+  }
+  throw Error(ErrorCode::kInvalidArgument,
+              "no clip '" + spec + "' in " + rig.source +
+                  "; available clips: " + describeClips(rig));
+}
+
+int defaultFrameCount(const AnimationClip& clip) {
+  if (!std::isfinite(clip.duration) || clip.duration <= 0) return 1;
+  return static_cast<int>(std::floor(clip.duration * 30.0)) + 1;
+}
+
+std::vector<double> frameTimes(const AnimationClip& clip, int frames) {
+  if (frames < 1) {
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "frame count must be at least 1, got " + std::to_string(frames));
+  }
+  std::vector<double> times(frames, clip.start);
+  for (int i = 1; i < frames; ++i) {
+    times[i] = clip.start + i * clip.duration / (frames - 1);
+  }
+  return times;
+}
+
+std::string frameFileName(int frame, MeshFormat format) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "frame_%04d.%s", frame,
+                format == MeshFormat::kObj ? "obj" : "ply");
+  return name;
+}
+
+void prepareOutputFolder(const std::string& dir, bool overwrite,
+                         const std::string& protected_path) {
+  std::error_code ec;
+  const fs::path folder(dir);
+  if (fs::exists(folder, ec) && !fs::is_directory(folder, ec)) {
+    throw Error(ErrorCode::kIo, dir + ": exists and is not a folder");
+  }
+  if (!fs::exists(folder, ec)) {
+    fs::create_directories(folder, ec);
+    if (ec) {
+      throw Error(ErrorCode::kIo,
+                  dir + ": cannot create the folder: " + ec.message());
+    }
+    return;
+  }
+
+  std::vector<fs::path> frame_files;
+  bool has_frame_entries = false;
+  for (const auto& entry : fs::directory_iterator(folder, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.compare(0, 6, "frame_") != 0) continue;
+    has_frame_entries = true;
+    if (isFrameFileName(name)) {
+      if (!protected_path.empty() && samePath(entry.path(), protected_path)) {
+        throw Error(ErrorCode::kIo,
+                    dir + ": the input " + protected_path +
+                        " is a frame file of this folder; choose another "
+                        "--out folder");
+      }
+      frame_files.push_back(entry.path());
+    }
+  }
+  if (ec) {
+    throw Error(ErrorCode::kIo,
+                dir + ": cannot list the folder: " + ec.message());
+  }
+  if (has_frame_entries && !overwrite) {
+    throw Error(ErrorCode::kIo,
+                dir +
+                    ": already holds frame files from an earlier run; "
+                    "pass --overwrite to replace them or choose another "
+                    "--out folder");
+  }
+  for (const fs::path& file : frame_files) {
+    fs::remove(file, ec);
+    if (ec) {
+      throw Error(ErrorCode::kIo,
+                  file.string() + ": cannot remove: " + ec.message());
+    }
+  }
+}
+
+void writeTextFileAtomically(const std::string& path, const std::string& text) {
+  const std::string temp = path + ".tmp-" + std::to_string(processId());
+  std::error_code ec;
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    if (!out) throw Error(ErrorCode::kIo, path + ": cannot open " + temp);
+    out << text;
+    out.close();
+    if (!out) {
+      fs::remove(temp, ec);
+      throw Error(ErrorCode::kIo, path + ": write failed");
+    }
+  }
+  fs::rename(temp, path, ec);
+  if (ec) {
+    const std::string reason = ec.message();
+    fs::remove(temp, ec);
+    throw Error(ErrorCode::kIo,
+                path + ": cannot rename " + temp + ": " + reason);
+  }
+}
+
+FrameSkinner::FrameSkinner(const Rig& rig, const std::string& device)
+    : rig_(rig) {
+  if (device == "reference") {
+    adjacency_ = VertexTriangleAdjacency::build(rig.mesh.triangles,
+                                                rig.mesh.vertexCount());
+    return;
+  }
+  auto context = ClContext::create(device == "auto" ? "" : device);
+  skinning_ = std::make_unique<ClSkinning>(context, rig.mesh, rig.weights,
+                                           rig.skeleton.jointCount());
+}
+
+const ClDeviceInfo* FrameSkinner::deviceInfo() const {
+  return skinning_ ? &skinning_->context().info() : nullptr;
+}
+
+std::string FrameSkinner::describe() const {
+  return skinning_ ? skinning_->context().info().describe()
+                   : std::string("reference (CPU)");
+}
+
+void FrameSkinner::skin(SkinningMethod method, const TransformList& skinning,
+                        Matrix3Xf& positions, Matrix3Xf& normals) {
+  times_ = StageTimes();
+  if (skinning_) {
+    skinning_->run(method, skinning, /*recompute_normals=*/true);
+    skinning_->readPositions(positions);
+    skinning_->readNormals(normals);
+    const ClStageTimes& t = skinning_->lastTimes();
+    times_.skinning_ms = t.skinning_ms;
+    times_.normals_ms = t.normals_ms;
+    times_.upload_ms = t.upload_ms;
+    times_.readback_ms = t.readback_ms;
+    return;
+  }
+
+  SkinningJob job;
+  job.method = method;
+  job.rest_positions = &rig_.mesh.positions;
+  job.rest_normals = &rig_.mesh.normals;
+  job.weights = &rig_.weights;
+  job.skinning = &skinning;
+  job.out_positions = &positions;
+  job.out_normals = &skinned_normals_;
+  auto start = Clock::now();
+  job.run();
+  times_.skinning_ms = millisecondsSince(start);
+
+  VertexNormalsJob normals_job;
+  normals_job.positions = &positions;
+  normals_job.triangles = &rig_.mesh.triangles;
+  normals_job.adjacency = &adjacency_;
+  normals_job.fallback_normals = &skinned_normals_;
+  normals_job.out_normals = &normals;
+  start = Clock::now();
+  normals_job.run();
+  times_.normals_ms = millisecondsSince(start);
+}
+
+TimeSummary summarize(std::vector<double> values) {
+  TimeSummary summary;
+  if (values.empty()) return summary;
+  std::sort(values.begin(), values.end());
+  const size_t n = values.size();
+  summary.median =
+      n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+  const size_t rank = static_cast<size_t>(std::ceil(0.95 * n));
+  summary.p95 = values[std::max<size_t>(rank, 1) - 1];
+  summary.min = values.front();
+  return summary;
+}
+
+RunResult runFrames(const Rig& rig, const AnimationClip& clip,
+                    FrameSkinner& skinner, const RunOptions& options) {
+  const Mesh& mesh = rig.mesh;
+  const Skeleton& skeleton = rig.skeleton;
+  RunResult result;
+  result.frames = static_cast<int>(options.times.size());
+
+  Matrix3Xf positions, normals;
+  skinner.skin(options.method, bindPoseSkinning(skeleton), positions, normals);
+  const double diagonal = rig.boundingBoxDiagonal();
+  const double rest_distance = maxVertexDistance(positions, mesh.positions);
+  result.rest_pose_error =
+      diagonal > 0 ? rest_distance / diagonal : rest_distance;
+
+  // A flat or open mesh can enclose (almost) nothing; ratios against that
+  // would be noise, so they are left unset.
+  result.rest_volume = enclosedVolume(mesh.positions, mesh.triangles);
+  const bool volume_meaningful =
+      diagonal > 0 &&
+      std::abs(result.rest_volume) > 1e-6 * diagonal * diagonal * diagonal;
+
+  std::vector<double> skinning_ms, normals_ms, upload_ms, readback_ms;
+  // Ends the progress line before an error message goes out.
+  struct ProgressLine {
+    bool active;
+    ~ProgressLine() {
+      if (active) std::cerr << "\n";
+    }
+  } progress_line{options.progress};
+  for (int i = 0; i < result.frames; ++i) {
+    const TransformList locals = clip.sampleLocal(skeleton, options.times[i]);
+    const TransformList skinning =
+        skinningTransforms(skeleton, globalTransforms(skeleton, locals));
+
+    const auto start = Clock::now();
+    skinner.skin(options.method, skinning, positions, normals);
+    result.frame_ms.push_back(millisecondsSince(start));
+    const StageTimes& stage = skinner.lastTimes();
+    skinning_ms.push_back(stage.skinning_ms);
+    normals_ms.push_back(stage.normals_ms);
+    upload_ms.push_back(stage.upload_ms);
+    readback_ms.push_back(stage.readback_ms);
+
+    if (volume_meaningful) {
+      const double ratio =
+          enclosedVolume(positions, mesh.triangles) / result.rest_volume;
+      result.volume_ratio_min =
+          i == 0 ? ratio : std::min(*result.volume_ratio_min, ratio);
+      result.volume_ratio_max =
+          i == 0 ? ratio : std::max(*result.volume_ratio_max, ratio);
+    }
+    if (options.on_frame) options.on_frame(i, positions, normals);
+    if (!options.out_dir.empty()) {
+      const std::string path =
+          (fs::path(options.out_dir) / frameFileName(i, options.format))
+              .string();
+      writeMesh(path, options.format, positions, &normals, mesh.triangles);
+      result.files.push_back(path);
+    }
+    if (options.progress) {
+      std::cerr << "\r[frame " << (i + 1) << "/" << result.frames << "]"
+                << std::flush;
+    }
+  }
+
+  result.frame = summarize(result.frame_ms);
+  result.stage_median.skinning_ms = summarize(skinning_ms).median;
+  result.stage_median.normals_ms = summarize(normals_ms).median;
+  result.stage_median.upload_ms = summarize(upload_ms).median;
+  result.stage_median.readback_ms = summarize(readback_ms).median;
+  return result;
+}
+
+}  // namespace isk::samples

@@ -1,0 +1,383 @@
+// Runs the built isk-skin executable (ISK_SKIN_EXE) and checks its contract:
+// exit codes, frame files, the JSON report, device agreement, the output
+// folder guard and that the input is never modified.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "data_folder.hpp"
+#include "isk/import.hpp"
+#include "isk/procedural.hpp"
+#include "isk/rig.hpp"
+#include "test_support.hpp"
+
+namespace isk {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ScopedTempDir {
+ public:
+  ScopedTempDir() {
+    std::random_device random;
+    path_ = fs::temp_directory_path() /
+            ("isk_skin_test_" + std::to_string(random()));
+    fs::create_directories(path_);
+  }
+  ~ScopedTempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const fs::path& path() const { return path_; }
+  std::string operator/(const std::string& name) const {
+    return (path_ / name).string();
+  }
+
+ private:
+  fs::path path_;
+};
+
+std::string shellQuote(const std::string& arg) {
+  std::string quoted = "'";
+  for (char c : arg) {
+    if (c == '\'') {
+      quoted += "'\\''";
+    } else {
+      quoted += c;
+    }
+  }
+  return quoted + "'";
+}
+
+struct RunOutput {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+RunOutput runIskSkin(const std::vector<std::string>& args) {
+  std::string command = shellQuote(ISK_SKIN_EXE);
+  for (const std::string& arg : args) command += " " + shellQuote(arg);
+  command += " 2>&1";
+  RunOutput result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) {
+    ADD_FAILURE() << "popen failed: " << command;
+    return result;
+  }
+  char buffer[4096];
+  size_t n;
+  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) {
+    result.output.append(buffer, n);
+  }
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+std::string describe(const std::vector<std::string>& args,
+                     const RunOutput& run) {
+  std::string text = "isk-skin";
+  for (const std::string& arg : args) text += " " + arg;
+  return text + "\nexit " + std::to_string(run.exit_code) + ", output:\n" +
+         run.output;
+}
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Vertex positions of an OBJ file written by isk::writeMesh.
+Matrix3Xf readObjPositions(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<Eigen::RowVector3f> rows;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("v ", 0) != 0) continue;
+    std::istringstream s(line.substr(2));
+    Eigen::RowVector3f p;
+    s >> p.x() >> p.y() >> p.z();
+    rows.push_back(p);
+  }
+  Matrix3Xf positions(rows.size(), 3);
+  for (size_t i = 0; i < rows.size(); ++i) positions.row(i) = rows[i];
+  return positions;
+}
+
+std::vector<std::string> frameFiles(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("frame_", 0) == 0) names.push_back(name);
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::vector<std::string> expectedFrameNames(int count, const std::string& ext) {
+  std::vector<std::string> names;
+  for (int i = 0; i < count; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "frame_%04d.%s", i, ext.c_str());
+    names.push_back(name);
+  }
+  return names;
+}
+
+void expectReportKeys(const nlohmann::json& report) {
+  for (const char* key : {"input", "vertices", "triangles", "joints",
+                          "skin_joints", "frames", "method", "clip", "device",
+                          "precompute_ms", "frame_ms", "stage_ms", "quality"}) {
+    EXPECT_TRUE(report.contains(key)) << "missing key " << key;
+  }
+  for (const char* key : {"median", "p95", "min"}) {
+    EXPECT_TRUE(report["frame_ms"].contains(key)) << "frame_ms." << key;
+  }
+  for (const char* key : {"skinning", "normals", "upload", "readback"}) {
+    EXPECT_TRUE(report["stage_ms"].contains(key)) << "stage_ms." << key;
+  }
+  EXPECT_TRUE(report["quality"].contains("volume_ratio"));
+  EXPECT_TRUE(report["quality"].contains("rest_pose_error"));
+}
+
+nlohmann::json readReport(const std::string& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in) << "no report at " << path;
+  return nlohmann::json::parse(in);
+}
+
+TEST(IskSkinTest, BuiltinCylinderWritesFramesAndReport) {
+  ScopedTempDir dir;
+  const Rig rig = makeBuiltinRig("cylinder");
+  const std::vector<std::string> args = {
+      "builtin:cylinder", "--frames",         "5", "--out", dir / "frames",
+      "--report",         dir / "report.json"};
+  const RunOutput run = runIskSkin(args);
+  ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+
+  EXPECT_EQ(frameFiles(dir.path() / "frames"), expectedFrameNames(5, "obj"));
+  for (const std::string& name : frameFiles(dir.path() / "frames")) {
+    EXPECT_EQ(readObjPositions(dir / ("frames/" + name)).rows(),
+              rig.mesh.vertexCount())
+        << name;
+  }
+  // Frame 0 is the clip's first key: the rest pose for the bend clip.
+  const Matrix3Xf first = readObjPositions(dir / "frames/frame_0000.obj");
+  EXPECT_LT(test::largestRowDistance(first, rig.mesh.positions).distance,
+            1e-5f * rig.boundingBoxDiagonal());
+
+  const nlohmann::json report = readReport(dir / "report.json");
+  expectReportKeys(report);
+  EXPECT_EQ(report["input"], "builtin:cylinder");
+  EXPECT_EQ(report["vertices"], rig.mesh.vertexCount());
+  EXPECT_EQ(report["triangles"], rig.mesh.triangleCount());
+  EXPECT_EQ(report["joints"], rig.skeleton.jointCount());
+  EXPECT_EQ(report["frames"], 5);
+  EXPECT_EQ(report["method"], "dqs");
+  EXPECT_EQ(report["clip"], rig.clips.at(0).name);
+  ASSERT_TRUE(report["device"].is_object()) << report["device"];
+  EXPECT_TRUE(report["device"].contains("platform"));
+  EXPECT_TRUE(report["device"].contains("name"));
+  EXPECT_LT(report["quality"]["rest_pose_error"].get<double>(), 1e-5);
+  // A closed cylinder: the volume ratio exists and stays near 1 for DQS.
+  ASSERT_TRUE(report["quality"]["volume_ratio"].is_object());
+  EXPECT_GT(report["quality"]["volume_ratio"]["min"].get<double>(), 0.5);
+  EXPECT_LT(report["quality"]["volume_ratio"]["max"].get<double>(), 1.5);
+}
+
+TEST(IskSkinTest, DefaultFrameCountIsThirtyPerSecondPlusOne) {
+  ScopedTempDir dir;
+  const Rig rig = makeBuiltinRig("cylinder");
+  const int expected =
+      static_cast<int>(std::floor(rig.clips.at(0).duration * 30.0)) + 1;
+  const std::vector<std::string> args = {"builtin:cylinder", "--method", "lbs",
+                                         "--report", dir / "report.json"};
+  const RunOutput run = runIskSkin(args);
+  ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+  const nlohmann::json report = readReport(dir / "report.json");
+  EXPECT_EQ(report["frames"], expected);
+  EXPECT_EQ(report["method"], "lbs");
+}
+
+TEST(IskSkinTest, ReferenceAndDefaultDeviceWriteTheSameFrames) {
+  const Rig rig = makeBuiltinRig("cylinder");
+  const float tolerance = 1e-5f * rig.boundingBoxDiagonal();
+  for (const std::string method : {"lbs", "dqs"}) {
+    ScopedTempDir dir;
+    const std::vector<std::string> ref_args = {
+        "builtin:cylinder", "--frames", "4",
+        "--method",         method,     "--device",
+        "reference",        "--out",    dir / "ref",
+        "--format",         "obj",      "--report",
+        dir / "ref.json"};
+    const RunOutput ref = runIskSkin(ref_args);
+    ASSERT_EQ(ref.exit_code, 0) << describe(ref_args, ref);
+    EXPECT_EQ(readReport(dir / "ref.json")["device"], "reference");
+
+    const std::vector<std::string> cl_args = {
+        "builtin:cylinder", "--frames", "4", "--method", method, "--out",
+        dir / "cl"};
+    const RunOutput cl = runIskSkin(cl_args);
+    ASSERT_EQ(cl.exit_code, 0) << describe(cl_args, cl);
+
+    ASSERT_EQ(frameFiles(dir.path() / "ref"), expectedFrameNames(4, "obj"));
+    ASSERT_EQ(frameFiles(dir.path() / "cl"), expectedFrameNames(4, "obj"));
+    for (const std::string& name : expectedFrameNames(4, "obj")) {
+      const test::RowMismatch mismatch =
+          test::largestRowDistance(readObjPositions(dir / ("ref/" + name)),
+                                   readObjPositions(dir / ("cl/" + name)));
+      EXPECT_LE(mismatch.distance, tolerance)
+          << method << " " << name << ": vertex " << mismatch.row;
+    }
+  }
+}
+
+TEST(IskSkinTest, PlyFormatWritesPlyFrames) {
+  ScopedTempDir dir;
+  const std::vector<std::string> args = {
+      "builtin:cylinder", "--frames", "2", "--format", "ply", "--out",
+      dir / "frames"};
+  const RunOutput run = runIskSkin(args);
+  ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+  EXPECT_EQ(frameFiles(dir.path() / "frames"), expectedFrameNames(2, "ply"));
+  EXPECT_EQ(readFile(dir / "frames/frame_0001.ply").rfind("ply\n", 0), 0u);
+}
+
+TEST(IskSkinTest, ImplicitMethodIsNotImplementedYet) {
+  const std::vector<std::string> args = {"builtin:cylinder", "--method",
+                                         "implicit"};
+  const RunOutput run = runIskSkin(args);
+  EXPECT_EQ(run.exit_code, 2) << describe(args, run);
+  EXPECT_NE(run.output.find("not implemented yet"), std::string::npos)
+      << run.output;
+}
+
+TEST(IskSkinTest, BadInputsExitNonZeroWithAMessage) {
+  ScopedTempDir dir;
+  const std::string garbage = dir / "garbage.dae";
+  std::ofstream(garbage) << "<COLLADA this is not a valid document";
+  const std::vector<std::vector<std::string>> cases = {
+      {dir / "missing.glb"},
+      {garbage},
+      {"builtin:no_such_rig"},
+      {"builtin:cylinder", "--clip", "no_such_clip"},
+      {"builtin:cylinder", "--clip", "7"},
+      {"builtin:cylinder", "--frames", "0"},
+      {"builtin:cylinder", "--frames", "-3"},
+      {"builtin:cylinder", "--method", "magic"},
+      {"builtin:cylinder", "--device", "quantum"},
+      {"builtin:cylinder", "--format", "stl"},
+      {},
+  };
+  for (const auto& args : cases) {
+    const RunOutput run = runIskSkin(args);
+    EXPECT_NE(run.exit_code, 0) << describe(args, run);
+    EXPECT_FALSE(run.output.empty()) << describe(args, run);
+  }
+  // The clip error names the clips there are, the builtin error the rigs.
+  const RunOutput bad_clip =
+      runIskSkin({"builtin:cylinder", "--clip", "no_such_clip"});
+  EXPECT_NE(bad_clip.output.find("isk-skin: error:"), std::string::npos);
+  EXPECT_NE(bad_clip.output.find(makeBuiltinRig("cylinder").clips[0].name),
+            std::string::npos)
+      << bad_clip.output;
+  const RunOutput bad_rig = runIskSkin({"builtin:no_such_rig"});
+  EXPECT_NE(bad_rig.output.find("cylinder"), std::string::npos)
+      << bad_rig.output;
+}
+
+TEST(IskSkinTest, BuiltinListPrintsTheNames) {
+  const RunOutput run = runIskSkin({"builtin:list"});
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  for (const std::string& name : builtinRigNames()) {
+    EXPECT_NE(run.output.find("builtin:" + name), std::string::npos) << name;
+  }
+}
+
+TEST(IskSkinTest, RefusesAFolderWithFramesUnlessOverwrite) {
+  ScopedTempDir dir;
+  const std::string out = dir / "frames";
+  const std::vector<std::string> first = {"builtin:cylinder", "--frames", "3",
+                                          "--out", out};
+  ASSERT_EQ(runIskSkin(first).exit_code, 0);
+  std::ofstream(dir / "frames/notes.txt") << "keep me\n";
+  const std::string before = readFile(dir / "frames/frame_0001.obj");
+
+  const std::vector<std::string> second = {
+      "builtin:cylinder", "--frames", "2", "--method", "lbs", "--out", out};
+  const RunOutput refused = runIskSkin(second);
+  EXPECT_EQ(refused.exit_code, 1) << describe(second, refused);
+  EXPECT_NE(refused.output.find("--overwrite"), std::string::npos)
+      << refused.output;
+  EXPECT_EQ(readFile(dir / "frames/frame_0001.obj"), before);
+  EXPECT_EQ(frameFiles(out), expectedFrameNames(3, "obj"));
+
+  std::vector<std::string> third = second;
+  third.push_back("--overwrite");
+  const RunOutput replaced = runIskSkin(third);
+  ASSERT_EQ(replaced.exit_code, 0) << describe(third, replaced);
+  // The stale frame_0002 of the first run is gone, other files stay.
+  EXPECT_EQ(frameFiles(out), expectedFrameNames(2, "obj"));
+  EXPECT_TRUE(fs::exists(dir / "frames/notes.txt"));
+
+  // A folder without frame files is fine.
+  const std::vector<std::string> fresh = {"builtin:cylinder", "--frames", "1",
+                                          "--out", dir.path().string()};
+  EXPECT_EQ(runIskSkin(fresh).exit_code, 0);
+}
+
+TEST(IskSkinTest, RiggedSimpleAssetKeepsItsInputUntouched) {
+  if (!test::haveAssets()) {
+    GTEST_SKIP() << test::missingAssetsMessage("isk-skin on RiggedSimple.dae");
+  }
+  ScopedTempDir dir;
+  // Work on a copy so that a faulty run could never damage the shared data.
+  const std::string input = dir / "RiggedSimple.dae";
+  fs::copy_file(samples::dataFile("RiggedSimple.dae"), input);
+  const std::string original = readFile(input);
+  const auto original_time = fs::last_write_time(input);
+  const Rig rig = importRig(input);
+
+  const std::vector<std::string> args = {
+      "--frames",          "5",  "--out", dir / "frames", "--report",
+      dir / "report.json", input};
+  const RunOutput run = runIskSkin(args);
+  ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+  EXPECT_EQ(frameFiles(dir.path() / "frames"), expectedFrameNames(5, "obj"));
+  for (const std::string& name : frameFiles(dir.path() / "frames")) {
+    EXPECT_EQ(readObjPositions(dir / ("frames/" + name)).rows(),
+              rig.mesh.vertexCount())
+        << name;
+  }
+  const nlohmann::json report = readReport(dir / "report.json");
+  expectReportKeys(report);
+  EXPECT_EQ(report["vertices"], rig.mesh.vertexCount());
+  EXPECT_EQ(report["triangles"], rig.mesh.triangleCount());
+  EXPECT_EQ(report["joints"], rig.skeleton.jointCount());
+  EXPECT_EQ(report["frames"], 5);
+  EXPECT_LT(report["quality"]["rest_pose_error"].get<double>(), 1e-5);
+
+  // Pointing the report at the input is refused.
+  const std::vector<std::string> onto_input = {"--frames", "1", "--report",
+                                               input, input};
+  const RunOutput refused = runIskSkin(onto_input);
+  EXPECT_NE(refused.exit_code, 0) << describe(onto_input, refused);
+
+  EXPECT_EQ(readFile(input), original);
+  EXPECT_EQ(fs::last_write_time(input), original_time);
+}
+
+}  // namespace
+}  // namespace isk
