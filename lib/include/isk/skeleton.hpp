@@ -38,8 +38,9 @@ struct Skeleton {
   TransformList bindGlobals() const;
 
   // Checks parent order, finiteness, and that every bind transform is rigid
-  // up to one uniform scale per joint (the scale is factored out by the
-  // importer); names the first bad joint.
+  // up to one uniform scale per joint (a unit conversion: it stays in
+  // inverse_bind and cancels against the same scale in the posed globals);
+  // names the first bad joint.
   Validation validate() const;
 };
 
