@@ -50,9 +50,11 @@ const isk::Rig& rigOf(const Model& model) {
   static std::map<std::string, std::unique_ptr<isk::Rig>> cache;
   auto& slot = cache[model.name];
   if (!slot) {
-    isk::Rig rig = model.file.empty() ? isk::makeBuiltinRig("arm")
-                                      : isk::importRig(isk::samples::dataFile(model.file));
-    slot = std::make_unique<isk::Rig>(isk::subdivideRig(rig, model.subdivision_levels));
+    isk::Rig rig = model.file.empty()
+                       ? isk::makeBuiltinRig("arm")
+                       : isk::importRig(isk::samples::dataFile(model.file));
+    slot = std::make_unique<isk::Rig>(
+        isk::subdivideRig(rig, model.subdivision_levels));
   }
   return *slot;
 }
@@ -64,7 +66,8 @@ isk::TransformList poseAt(const isk::Rig& rig, int64_t frame) {
   const int frames = std::max(1, static_cast<int>(clip.duration * 30.0) + 1);
   const double t = clip.start + (frame % frames) / 30.0;
   return isk::skinningTransforms(
-      rig.skeleton, isk::globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t)));
+      rig.skeleton,
+      isk::globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t)));
 }
 
 std::shared_ptr<isk::ClContext> context() {
@@ -72,9 +75,11 @@ std::shared_ptr<isk::ClContext> context() {
   return ctx;
 }
 
-void skinOpenCl(benchmark::State& state, const Model& model, isk::SkinningMethod method) {
+void skinOpenCl(benchmark::State& state, const Model& model,
+                isk::SkinningMethod method) {
   const isk::Rig& rig = rigOf(model);
-  isk::ClSkinning skinning(context(), rig.mesh, rig.weights, rig.skeleton.jointCount());
+  isk::ClSkinning skinning(context(), rig.mesh, rig.weights,
+                           rig.skeleton.jointCount());
   isk::Matrix3Xf positions, normals;
   double upload = 0, skin = 0, normal = 0, readback = 0;
   int64_t frame = 0;
@@ -95,14 +100,17 @@ void skinOpenCl(benchmark::State& state, const Model& model, isk::SkinningMethod
   state.counters["skinning_ms"] = skin / n;
   state.counters["normals_ms"] = normal / n;
   state.counters["readback_ms"] = readback / n;
-  state.counters["fps"] = benchmark::Counter(static_cast<double>(frame), benchmark::Counter::kIsRate);
+  state.counters["fps"] = benchmark::Counter(static_cast<double>(frame),
+                                             benchmark::Counter::kIsRate);
   state.SetLabel(context()->info().describe());
 }
 
-void skinReference(benchmark::State& state, const Model& model, isk::SkinningMethod method) {
+void skinReference(benchmark::State& state, const Model& model,
+                   isk::SkinningMethod method) {
   const isk::Rig& rig = rigOf(model);
   const isk::VertexTriangleAdjacency adjacency =
-      isk::VertexTriangleAdjacency::build(rig.mesh.triangles, rig.mesh.vertexCount());
+      isk::VertexTriangleAdjacency::build(rig.mesh.triangles,
+                                          rig.mesh.vertexCount());
   isk::Matrix3Xf positions, skinned_normals, normals;
   int64_t frame = 0;
   for (auto _ : state) {
@@ -126,7 +134,8 @@ void skinReference(benchmark::State& state, const Model& model, isk::SkinningMet
     benchmark::DoNotOptimize(normals.data());
   }
   state.counters["vertices"] = rig.mesh.vertexCount();
-  state.counters["fps"] = benchmark::Counter(static_cast<double>(frame), benchmark::Counter::kIsRate);
+  state.counters["fps"] = benchmark::Counter(static_cast<double>(frame),
+                                             benchmark::Counter::kIsRate);
   state.SetLabel("CPU reference, 1 thread");
 }
 
@@ -136,18 +145,24 @@ int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   const bool have_data = isk::samples::dataFolderPresent();
   if (!have_data) {
-    std::fprintf(stderr, "data folder '%s' is absent (set ISK_DATA_DIR): only the builtin rig "
-                         "is benchmarked\n", isk::samples::dataFolder().c_str());
+    std::fprintf(
+        stderr,
+        "data folder '%s' is absent (set ISK_DATA_DIR): only the builtin rig "
+        "is benchmarked\n",
+        isk::samples::dataFolder().c_str());
   }
   for (const Model& model : models()) {
     if (!model.file.empty() && !have_data) continue;
-    for (auto method : {isk::SkinningMethod::kLinearBlend, isk::SkinningMethod::kDualQuaternion}) {
-      const std::string suffix = model.name + "/" + isk::skinningMethodName(method);
-      benchmark::RegisterBenchmark(("Frame/opencl/" + suffix).c_str(), skinOpenCl, model, method)
+    for (auto method : {isk::SkinningMethod::kLinearBlend,
+                        isk::SkinningMethod::kDualQuaternion}) {
+      const std::string suffix =
+          model.name + "/" + isk::skinningMethodName(method);
+      benchmark::RegisterBenchmark(("Frame/opencl/" + suffix).c_str(),
+                                   skinOpenCl, model, method)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
-      benchmark::RegisterBenchmark(("Frame/reference/" + suffix).c_str(), skinReference, model,
-                                   method)
+      benchmark::RegisterBenchmark(("Frame/reference/" + suffix).c_str(),
+                                   skinReference, model, method)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
     }

@@ -488,7 +488,9 @@ const AssetCounts kAssets[] = {
 };
 
 // Test names and failure messages show the file, not the struct's bytes.
-void PrintTo(const AssetCounts& counts, std::ostream* os) { *os << counts.file; }
+void PrintTo(const AssetCounts& counts, std::ostream* os) {
+  *os << counts.file;
+}
 
 class ImportAssetTest : public testing::TestWithParam<AssetCounts> {};
 

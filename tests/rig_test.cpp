@@ -27,8 +27,8 @@ std::string firstNonManifoldEdge(const TriangleMatrix& triangles) {
   }
   for (const auto& [edge, n] : count) {
     if (n != 2) {
-      return std::to_string(edge.first) + "-" + std::to_string(edge.second) + " has " +
-             std::to_string(n) + " triangles";
+      return std::to_string(edge.first) + "-" + std::to_string(edge.second) +
+             " has " + std::to_string(n) + " triangles";
     }
   }
   return "";
@@ -72,7 +72,8 @@ TEST(ProceduralRigs, UnknownNamesAndBadOptionsAreRefusedWithTheValidNames) {
     FAIL();
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
-    EXPECT_NE(std::string(e.what()).find("cylinder, finger, arm"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("cylinder, finger, arm"),
+              std::string::npos);
   }
   CylinderRigOptions bad;
   bad.bones = 0;
@@ -80,8 +81,8 @@ TEST(ProceduralRigs, UnknownNamesAndBadOptionsAreRefusedWithTheValidNames) {
 }
 
 TEST(SkinWeights, ListsAreMergedSortedAndNormalized) {
-  SkinWeights w = SkinWeights::fromLists({{{2, 0.2f}, {0, 0.5f}, {2, 0.1f}, {1, 0.f}},
-                                          {{1, 2.0f}}});
+  SkinWeights w = SkinWeights::fromLists(
+      {{{2, 0.2f}, {0, 0.5f}, {2, 0.1f}, {1, 0.f}}, {{1, 2.0f}}});
   EXPECT_EQ(w.vertexCount(), 2);
   EXPECT_EQ(w.influenceCount(0), 2);  // joint 2 merged, zero weight dropped
   w.sortByWeight();
@@ -107,7 +108,8 @@ TEST(SkinWeights, VertexWithoutWeightIsNamedThroughItsMesh) {
   rig.weights = SkinWeights::fromLists(lists);
   const Validation v = rig.validate();
   ASSERT_FALSE(v);
-  EXPECT_NE(v.reason().find("mesh 'Body' vertex 17 has no skin weight"), std::string::npos)
+  EXPECT_NE(v.reason().find("mesh 'Body' vertex 17 has no skin weight"),
+            std::string::npos)
       << v.reason();
 }
 
@@ -118,7 +120,8 @@ TEST(Skeleton, NonRigidBindTransformIsRefusedByName) {
   rig.skeleton.joints[1].inverse_bind.linear() *= 100.f;
   EXPECT_TRUE(rig.skeleton.validate()) << rig.skeleton.validate().reason();
   // ...a non-uniform one is not.
-  rig.skeleton.joints[1].inverse_bind.linear() = Eigen::Vector3f(1.f, 2.f, 1.f).asDiagonal();
+  rig.skeleton.joints[1].inverse_bind.linear() =
+      Eigen::Vector3f(1.f, 2.f, 1.f).asDiagonal();
   const Validation v = rig.skeleton.validate();
   ASSERT_FALSE(v);
   EXPECT_NE(v.reason().find("joint 'bone1'"), std::string::npos) << v.reason();
@@ -134,8 +137,9 @@ TEST(Skeleton, ParentsMustPrecedeChildren) {
 TEST(Mesh, ValidationNamesTheBadVertexAndTriangle) {
   Rig rig = makeCylinderRig();
   rig.mesh.positions(5, 1) = std::numeric_limits<float>::infinity();
-  EXPECT_NE(rig.mesh.validate().reason().find("vertex 5 has a non-finite position"),
-            std::string::npos);
+  EXPECT_NE(
+      rig.mesh.validate().reason().find("vertex 5 has a non-finite position"),
+      std::string::npos);
   rig = makeCylinderRig();
   rig.mesh.triangles(3, 2) = rig.mesh.vertexCount();
   EXPECT_NE(rig.mesh.validate().reason().find("triangle 3"), std::string::npos);
@@ -156,8 +160,9 @@ TEST(Animation, SamplingInterpolatesAndClamps) {
   channel.translation_times = {1.0, 3.0};
   channel.translations = {Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(4, 0, 0)};
   channel.rotation_times = {1.0, 3.0};
-  channel.rotations = {Eigen::Quaternionf::Identity(),
-                       Eigen::Quaternionf(Eigen::AngleAxisf(1.5f, Eigen::Vector3f::UnitZ()))};
+  channel.rotations = {
+      Eigen::Quaternionf::Identity(),
+      Eigen::Quaternionf(Eigen::AngleAxisf(1.5f, Eigen::Vector3f::UnitZ()))};
   clip.channels.push_back(channel);
   ASSERT_TRUE(clip.validate(skeleton));
   const Eigen::Affine3f mid = clip.sampleLocal(skeleton, 2.0)[0];
@@ -195,7 +200,8 @@ TEST(Pose, RestLocalsGiveTheBindPoseAndIdentitySkinning) {
     const TransformList bind = rig.skeleton.bindGlobals();
     const TransformList skinning = skinningTransforms(rig.skeleton, globals);
     for (int j = 0; j < rig.skeleton.jointCount(); ++j) {
-      EXPECT_TRUE(globals[j].isApprox(bind[j], 1e-5f)) << name << " joint " << j;
+      EXPECT_TRUE(globals[j].isApprox(bind[j], 1e-5f))
+          << name << " joint " << j;
       EXPECT_TRUE(skinning[j].isApprox(Eigen::Affine3f::Identity(), 1e-5f));
     }
   }
@@ -206,7 +212,8 @@ TEST(Subdivide, QuadruplesTrianglesAndInterpolatesWeights) {
   const Rig fine = subdivideRig(rig, 1);
   EXPECT_EQ(fine.mesh.triangleCount(), 4 * rig.mesh.triangleCount());
   // Closed manifold: V' = V + E and E = 3F/2.
-  EXPECT_EQ(fine.mesh.vertexCount(), rig.mesh.vertexCount() + 3 * rig.mesh.triangleCount() / 2);
+  EXPECT_EQ(fine.mesh.vertexCount(),
+            rig.mesh.vertexCount() + 3 * rig.mesh.triangleCount() / 2);
   EXPECT_TRUE(fine.validate()) << fine.validate().reason();
   EXPECT_EQ(firstNonManifoldEdge(fine.mesh.triangles), "");
   // The surface is the same: volume within the polygonal refinement error.

@@ -1,10 +1,11 @@
 // OpenCL runtime: device selection, application-supplied objects, program
 // cache, embedded kernels, and errors that name the failing call.
+#include "isk/cl/runtime.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 
-#include "isk/cl/runtime.hpp"
 #include "isk/cl/skinning.hpp"
 #include "isk/error.hpp"
 #include "isk/pose.hpp"
@@ -37,7 +38,8 @@ class ScopedEnv {
 
 TEST(Runtime, ListsDevicesAndCreatesTheDefaultContext) {
   const auto devices = listClDevices();
-  ASSERT_FALSE(devices.empty()) << "no OpenCL device: install an ICD (pocl-opencl-icd)";
+  ASSERT_FALSE(devices.empty())
+      << "no OpenCL device: install an ICD (pocl-opencl-icd)";
   for (size_t i = 0; i < devices.size(); ++i) {
     EXPECT_EQ(devices[i].index, static_cast<int>(i));
     EXPECT_FALSE(devices[i].name.empty());
@@ -71,7 +73,8 @@ TEST(Runtime, BadSelectionsGiveTypedErrors) {
     FAIL() << "device 999 was accepted";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kNoDevice);
-    EXPECT_NE(std::string(e.what()).find("devices seen"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("devices seen"), std::string::npos)
+        << e.what();
   }
   try {
     ClContext::create("fastest");
@@ -126,23 +129,27 @@ TEST(Runtime, BuildFailureNamesTheCallAndTheFile) {
     EXPECT_NE(e.clStatus(), 0);
     const std::string message = e.what();
     EXPECT_NE(message.find("clBuildProgram"), std::string::npos) << message;
-    EXPECT_NE(message.find("kernels/skinning.cl"), std::string::npos) << message;
+    EXPECT_NE(message.find("kernels/skinning.cl"), std::string::npos)
+        << message;
   }
 }
 
 TEST(Runtime, WrapsTheApplicationsContextAndQueue) {
   auto owner = ClContext::create("");
-  auto wrapped = ClContext::wrap(owner->context()(), owner->device()(), owner->queue()());
+  auto wrapped =
+      ClContext::wrap(owner->context()(), owner->device()(), owner->queue()());
   EXPECT_EQ(wrapped->context()(), owner->context()());
   EXPECT_EQ(wrapped->info().name, owner->info().name);
   EXPECT_TRUE(wrapped->profilingEnabled());
   // The wrapped context runs the kernels like an owned one.
   Rig rig = makeCylinderRig();
-  ClSkinning skinning(wrapped, rig.mesh, rig.weights, rig.skeleton.jointCount());
+  ClSkinning skinning(wrapped, rig.mesh, rig.weights,
+                      rig.skeleton.jointCount());
   skinning.run(SkinningMethod::kDualQuaternion, bindPoseSkinning(rig.skeleton));
   Matrix3Xf positions;
   skinning.readPositions(positions);
-  EXPECT_LE(test::largestRowDistance(positions, rig.mesh.positions).distance, 1e-5f);
+  EXPECT_LE(test::largestRowDistance(positions, rig.mesh.positions).distance,
+            1e-5f);
 
   // A queue of another context is refused with a reason.
   auto other = ClContext::create("");
@@ -165,8 +172,10 @@ TEST(Runtime, StatusNamesAreReadable) {
 
 TEST(Runtime, StageTimesComeFromProfilingEvents) {
   Rig rig = makeBuiltinRig("arm");
-  ClSkinning skinning(test::sharedContext(), rig.mesh, rig.weights, rig.skeleton.jointCount());
-  skinning.run(SkinningMethod::kLinearBlend, bindPoseSkinning(rig.skeleton), true);
+  ClSkinning skinning(test::sharedContext(), rig.mesh, rig.weights,
+                      rig.skeleton.jointCount());
+  skinning.run(SkinningMethod::kLinearBlend, bindPoseSkinning(rig.skeleton),
+               true);
   Matrix3Xf out;
   skinning.readPositions(out);
   const ClStageTimes& t = skinning.lastTimes();

@@ -1,11 +1,12 @@
 // LBS and DQS: OpenCL kernels against the CPU reference on every shared asset
 // over its clip and on the procedural rigs; exactness properties of DQS; the
 // bind pose reproduces the input; device normals against the reference.
+#include "isk/cl/skinning.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "isk/cl/skinning.hpp"
 #include "isk/dual_quaternion.hpp"
 #include "isk/error.hpp"
 #include "isk/mesh_metrics.hpp"
@@ -36,8 +37,8 @@ struct Frame {
   Matrix3Xf normals;
 };
 
-Frame skinOnCpu(const Rig& rig, SkinningMethod method, const TransformList& pose,
-                bool recompute_normals) {
+Frame skinOnCpu(const Rig& rig, SkinningMethod method,
+                const TransformList& pose, bool recompute_normals) {
   Frame frame;
   Matrix3Xf skinned_normals;
   SkinningJob job;
@@ -51,8 +52,8 @@ Frame skinOnCpu(const Rig& rig, SkinningMethod method, const TransformList& pose
   EXPECT_TRUE(job.validate()) << job.validate().reason();
   job.run();
   if (recompute_normals) {
-    const VertexTriangleAdjacency adjacency =
-        VertexTriangleAdjacency::build(rig.mesh.triangles, rig.mesh.vertexCount());
+    const VertexTriangleAdjacency adjacency = VertexTriangleAdjacency::build(
+        rig.mesh.triangles, rig.mesh.vertexCount());
     VertexNormalsJob normals;
     normals.positions = &frame.positions;
     normals.triangles = &rig.mesh.triangles;
@@ -71,20 +72,22 @@ std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
   for (int f = 0; f < frames; ++f) {
     const double t = clip.start + clip.duration * f / std::max(frames - 1, 1);
     poses.push_back(skinningTransforms(
-        rig.skeleton, globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t))));
+        rig.skeleton,
+        globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t))));
   }
   return poses;
 }
 
 // Runs both paths over the clip and compares every frame, both methods,
 // skinned normals and recomputed normals.
-void expectDeviceMatchesReference(const Rig& rig, const std::string& name, int frames) {
+void expectDeviceMatchesReference(const Rig& rig, const std::string& name,
+                                  int frames) {
   auto context = test::sharedContext();
   ClSkinning device(context, rig.mesh, rig.weights, rig.skeleton.jointCount());
   const float diagonal = rig.boundingBoxDiagonal();
   const auto poses = clipPoses(rig, frames);
-  const VertexTriangleAdjacency adjacency =
-      VertexTriangleAdjacency::build(rig.mesh.triangles, rig.mesh.vertexCount());
+  const VertexTriangleAdjacency adjacency = VertexTriangleAdjacency::build(
+      rig.mesh.triangles, rig.mesh.vertexCount());
   for (SkinningMethod method : kMethods) {
     for (bool recompute : {false, true}) {
       for (size_t f = 0; f < poses.size(); ++f) {
@@ -93,7 +96,8 @@ void expectDeviceMatchesReference(const Rig& rig, const std::string& name, int f
         Frame actual;
         device.readPositions(actual.positions);
         device.readNormals(actual.normals);
-        const auto p = test::largestRowDistance(actual.positions, expected.positions);
+        const auto p =
+            test::largestRowDistance(actual.positions, expected.positions);
         ASSERT_LE(p.distance, positionTolerance(*context) * diagonal)
             << name << " " << skinningMethodName(method) << " frame " << f
             << ": first worst vertex " << p.row << " ("
@@ -104,7 +108,8 @@ void expectDeviceMatchesReference(const Rig& rig, const std::string& name, int f
         // up magnified in the normal's direction.
         Matrix3Xf expected_normals = expected.normals;
         if (recompute) {
-          Matrix3Xf skinned_normals = skinOnCpu(rig, method, poses[f], false).normals;
+          Matrix3Xf skinned_normals =
+              skinOnCpu(rig, method, poses[f], false).normals;
           VertexNormalsJob normals;
           normals.positions = &actual.positions;
           normals.triangles = &rig.mesh.triangles;
@@ -113,11 +118,12 @@ void expectDeviceMatchesReference(const Rig& rig, const std::string& name, int f
           normals.out_normals = &expected_normals;
           normals.run();
         }
-        const auto n = test::largestRowDistance(actual.normals, expected_normals);
+        const auto n =
+            test::largestRowDistance(actual.normals, expected_normals);
         ASSERT_LE(n.distance, normalTolerance(*context))
             << name << " " << skinningMethodName(method)
-            << (recompute ? " recomputed" : " skinned") << " normals, frame " << f
-            << ": worst vertex " << n.row;
+            << (recompute ? " recomputed" : " skinned") << " normals, frame "
+            << f << ": worst vertex " << n.row;
       }
     }
   }
@@ -131,7 +137,8 @@ TEST(Skinning, DeviceMatchesReferenceOnProceduralRigs) {
 }
 
 TEST(Skinning, DeviceMatchesReferenceOnEverySharedAssetOverItsClip) {
-  if (!test::haveAssets()) GTEST_SKIP() << test::missingAssetsMessage("the asset comparisons");
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("the asset comparisons");
   for (const std::string& file : test::assetNames()) {
     SCOPED_TRACE(file);
     expectDeviceMatchesReference(test::loadAsset(file), file, 12);
@@ -152,11 +159,14 @@ void expectBindPoseReproducesInput(const Rig& rig, const std::string& name) {
     device.readPositions(gpu.positions);
     device.readNormals(gpu.normals);
     for (const Frame* frame : std::initializer_list<const Frame*>{&cpu, &gpu}) {
-      const auto p = test::largestRowDistance(frame->positions, rig.mesh.positions);
-      EXPECT_LE(p.distance, tolerance) << name << " " << skinningMethodName(method)
-                                       << ": vertex " << p.row << " moved";
+      const auto p =
+          test::largestRowDistance(frame->positions, rig.mesh.positions);
+      EXPECT_LE(p.distance, tolerance)
+          << name << " " << skinningMethodName(method) << ": vertex " << p.row
+          << " moved";
       const auto n = test::largestRowDistance(frame->normals, rig.mesh.normals);
-      EXPECT_LE(n.distance, 1e-5f) << name << ": normal of vertex " << n.row << " changed";
+      EXPECT_LE(n.distance, 1e-5f)
+          << name << ": normal of vertex " << n.row << " changed";
     }
   }
 }
@@ -168,7 +178,8 @@ TEST(Skinning, BindPoseReproducesInputOnProceduralRigs) {
 }
 
 TEST(Skinning, BindPoseReproducesInputOnSharedAssets) {
-  if (!test::haveAssets()) GTEST_SKIP() << test::missingAssetsMessage("the asset bind poses");
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("the asset bind poses");
   for (const std::string& file : test::assetNames()) {
     expectBindPoseReproducesInput(test::loadAsset(file), file);
   }
@@ -181,11 +192,13 @@ void expectRigidMotionIsExact(const Rig& rig, const std::string& name) {
       Eigen::Translation3f(0.3f, -1.2f, 2.5f) *
       Eigen::AngleAxisf(2.6f, Eigen::Vector3f(1.f, 2.f, -0.5f).normalized());
   const TransformList pose(rig.skeleton.joints.size(), motion);
-  Matrix3Xf expected = (rig.mesh.positions * motion.linear().transpose()).rowwise() +
-                       motion.translation().transpose();
+  Matrix3Xf expected =
+      (rig.mesh.positions * motion.linear().transpose()).rowwise() +
+      motion.translation().transpose();
   auto context = test::sharedContext();
   ClSkinning device(context, rig.mesh, rig.weights, rig.skeleton.jointCount());
-  const float tolerance = 1e-5f * (rig.boundingBoxDiagonal() + motion.translation().norm());
+  const float tolerance =
+      1e-5f * (rig.boundingBoxDiagonal() + motion.translation().norm());
   for (SkinningMethod method : kMethods) {
     const Frame cpu = skinOnCpu(rig, method, pose, false);
     device.run(method, pose, false);
@@ -201,7 +214,8 @@ void expectRigidMotionIsExact(const Rig& rig, const std::string& name) {
 
 TEST(Skinning, SingleRigidMotionIsExact) {
   expectRigidMotionIsExact(makeBuiltinRig("arm"), "builtin:arm");
-  if (!test::haveAssets()) GTEST_SKIP() << test::missingAssetsMessage("CesiumMan");
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("CesiumMan");
   expectRigidMotionIsExact(test::loadAsset("CesiumMan.glb"), "CesiumMan.glb");
 }
 
@@ -209,18 +223,22 @@ TEST(Skinning, SingleRigidMotionIsExact) {
 TEST(Skinning, DualQuaternionOfSingleBoneVertexIsExact) {
   Rig rig = makeCylinderRig();
   TransformList pose = bindPoseSkinning(rig.skeleton);
-  const Eigen::Affine3f bend = Eigen::Translation3f(4.f, 0.f, 0.f) *
-                               Eigen::AngleAxisf(2.0f, Eigen::Vector3f::UnitZ()) *
-                               Eigen::Translation3f(-4.f, 0.f, 0.f);
+  const Eigen::Affine3f bend =
+      Eigen::Translation3f(4.f, 0.f, 0.f) *
+      Eigen::AngleAxisf(2.0f, Eigen::Vector3f::UnitZ()) *
+      Eigen::Translation3f(-4.f, 0.f, 0.f);
   pose[1] = bend;
-  const Frame frame = skinOnCpu(rig, SkinningMethod::kDualQuaternion, pose, false);
+  const Frame frame =
+      skinOnCpu(rig, SkinningMethod::kDualQuaternion, pose, false);
   int checked = 0;
   for (int v = 0; v < rig.mesh.vertexCount(); ++v) {
     if (rig.weights.influenceCount(v) != 1) continue;
     const Eigen::Vector3f rest = rig.mesh.positions.row(v).transpose();
     const bool on_bone1 = rig.weights.joints[rig.weights.offsets[v]] == 1;
-    const Eigen::Vector3f expected = on_bone1 ? Eigen::Vector3f(bend * rest) : rest;
-    ASSERT_LE((frame.positions.row(v).transpose() - expected).norm(), 1e-5f) << "vertex " << v;
+    const Eigen::Vector3f expected =
+        on_bone1 ? Eigen::Vector3f(bend * rest) : rest;
+    ASSERT_LE((frame.positions.row(v).transpose() - expected).norm(), 1e-5f)
+        << "vertex " << v;
     ++checked;
   }
   EXPECT_GT(checked, rig.mesh.vertexCount() / 2);
@@ -244,17 +262,18 @@ TEST(Skinning, DualQuaternionBlendTakesTheShortWayAroundAntipodes) {
     joint.inverse_bind = Eigen::Affine3f::Identity();
     rig.skeleton.joints.push_back(joint);
   }
-  rig.weights = SkinWeights::fromLists({{{0, 0.5f}, {1, 0.5f}},
-                                        {{0, 0.5f}, {1, 0.5f}},
-                                        {{0, 0.5f}, {1, 0.5f}}});
+  rig.weights = SkinWeights::fromLists(
+      {{{0, 0.5f}, {1, 0.5f}}, {{0, 0.5f}, {1, 0.5f}}, {{0, 0.5f}, {1, 0.5f}}});
   rig.weights.sortByWeight();
   ASSERT_TRUE(rig.validate()) << rig.validate().reason();
   const float kDegree = 3.14159265f / 180.f;
   TransformList pose = bindPoseSkinning(rig.skeleton);
   pose[1] = Eigen::AngleAxisf(190.f * kDegree, Eigen::Vector3f::UnitZ());
   const Eigen::Vector3f expected =
-      Eigen::AngleAxisf(-85.f * kDegree, Eigen::Vector3f::UnitZ()) * Eigen::Vector3f::UnitX();
-  const Frame cpu = skinOnCpu(rig, SkinningMethod::kDualQuaternion, pose, false);
+      Eigen::AngleAxisf(-85.f * kDegree, Eigen::Vector3f::UnitZ()) *
+      Eigen::Vector3f::UnitX();
+  const Frame cpu =
+      skinOnCpu(rig, SkinningMethod::kDualQuaternion, pose, false);
   EXPECT_LE((cpu.positions.row(0).transpose() - expected).norm(), 1e-5f)
       << "got " << cpu.positions.row(0);
   ClSkinning device(test::sharedContext(), rig.mesh, rig.weights, 2);
@@ -272,12 +291,12 @@ TEST(Skinning, DualQuaternionPreservesVolumeBetterThanLinearBlendOnTwist) {
   TransformList pose = bindPoseSkinning(rig.skeleton);
   pose[1] = Eigen::AngleAxisf(2.6f, Eigen::Vector3f::UnitX());
   const double rest = enclosedVolume(rig.mesh.positions, rig.mesh.triangles);
-  const double lbs =
-      enclosedVolume(skinOnCpu(rig, SkinningMethod::kLinearBlend, pose, false).positions,
-                     rig.mesh.triangles);
-  const double dqs =
-      enclosedVolume(skinOnCpu(rig, SkinningMethod::kDualQuaternion, pose, false).positions,
-                     rig.mesh.triangles);
+  const double lbs = enclosedVolume(
+      skinOnCpu(rig, SkinningMethod::kLinearBlend, pose, false).positions,
+      rig.mesh.triangles);
+  const double dqs = enclosedVolume(
+      skinOnCpu(rig, SkinningMethod::kDualQuaternion, pose, false).positions,
+      rig.mesh.triangles);
   EXPECT_GT(rest, 0.0);
   EXPECT_LT(lbs / rest, 0.97);
   EXPECT_NEAR(dqs / rest, 1.0, 0.01);
@@ -299,20 +318,23 @@ TEST(Skinning, ValidateReportsBadInputs) {
   TransformList short_pose(1, Eigen::Affine3f::Identity());
   job.skinning = &short_pose;
   EXPECT_FALSE(job.validate());
-  EXPECT_NE(job.validate().reason().find("transforms were given"), std::string::npos);
+  EXPECT_NE(job.validate().reason().find("transforms were given"),
+            std::string::npos);
   EXPECT_THROW(job.run(), Error);
   TransformList nan_pose = pose;
   nan_pose[0].matrix()(0, 0) = std::nanf("");
   job.skinning = &nan_pose;
   EXPECT_FALSE(job.validate());
   // The device path rejects a pose of the wrong size with a reason too.
-  ClSkinning device(test::sharedContext(), rig.mesh, rig.weights, rig.skeleton.jointCount());
+  ClSkinning device(test::sharedContext(), rig.mesh, rig.weights,
+                    rig.skeleton.jointCount());
   try {
     device.run(SkinningMethod::kDualQuaternion, short_pose);
     FAIL() << "a pose of the wrong size was accepted";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
-    EXPECT_NE(std::string(e.what()).find("1 joint transforms given"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("1 joint transforms given"),
+              std::string::npos);
   }
 }
 
@@ -326,7 +348,8 @@ TEST(VertexNormals, ReferenceGivesOutwardUnitNormalsOnClosedRig) {
     const Eigen::Vector3f p = rig.mesh.positions.row(v).transpose();
     if (p.x() > 0.5f && p.x() < 7.5f) {
       const Eigen::Vector3f radial(0.f, p.y(), p.z());
-      ASSERT_GT(frame.normals.row(v).dot(radial.normalized().transpose()), 0.99f)
+      ASSERT_GT(frame.normals.row(v).dot(radial.normalized().transpose()),
+                0.99f)
           << "vertex " << v;
     }
   }

@@ -10,9 +10,9 @@ namespace isk::test {
 
 const std::vector<std::string>& assetNames() {
   static const std::vector<std::string> names = {
-      "RiggedSimple.dae",        "anim_test.x",
-      "CesiumMan.glb",           "human-addon-animations.glb",
-      "RobotExpressive.glb",     "animation_with_skeleton.fbx",
+      "RiggedSimple.dae",    "anim_test.x",
+      "CesiumMan.glb",       "human-addon-animations.glb",
+      "RobotExpressive.glb", "animation_with_skeleton.fbx",
       "quad_skin.glb"};
   return names;
 }
@@ -22,7 +22,8 @@ const Rig& loadAsset(const std::string& file) {
   static std::map<std::string, Rig> cache;
   std::lock_guard<std::mutex> lock(mutex);
   auto it = cache.find(file);
-  if (it == cache.end()) it = cache.emplace(file, importRig(samples::dataFile(file))).first;
+  if (it == cache.end())
+    it = cache.emplace(file, importRig(samples::dataFile(file))).first;
   return it->second;
 }
 
@@ -48,7 +49,8 @@ RowMismatch largestRowDistance(const Matrix3Xf& a, const Matrix3Xf& b) {
   for (int r = 0; r < a.rows(); ++r) {
     const float d = (a.row(r) - b.row(r)).norm();
     if (!(d <= result.distance)) {  // NaN counts as the worst
-      result.distance = std::isnan(d) ? std::numeric_limits<float>::infinity() : d;
+      result.distance =
+          std::isnan(d) ? std::numeric_limits<float>::infinity() : d;
       result.row = r;
     }
   }

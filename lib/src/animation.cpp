@@ -20,13 +20,15 @@ void bracket(const std::vector<double>& times, double t, size_t& i, float& a) {
     return;
   }
   i = static_cast<size_t>(std::upper_bound(times.begin(), times.end(), t) -
-                          times.begin()) - 1;
+                          times.begin()) -
+      1;
   const double span = times[i + 1] - times[i];
   a = span > 0 ? static_cast<float>((t - times[i]) / span) : 0.f;
 }
 
 Eigen::Vector3f sampleVector(const std::vector<double>& times,
-                             const std::vector<Eigen::Vector3f>& keys, double t) {
+                             const std::vector<Eigen::Vector3f>& keys,
+                             double t) {
   if (keys.size() == 1) return keys[0];
   size_t i;
   float a;
@@ -52,7 +54,8 @@ template <typename Key>
 Validation validateTrack(const std::vector<double>& times,
                          const std::vector<Key>& keys, const char* what) {
   if (times.size() != keys.size()) {
-    return Validation::fail(std::string(what) + " times and keys differ in count");
+    return Validation::fail(std::string(what) +
+                            " times and keys differ in count");
   }
   for (size_t k = 0; k < times.size(); ++k) {
     if (!std::isfinite(times[k]) || (k > 0 && times[k] < times[k - 1])) {
@@ -69,9 +72,11 @@ Validation validateTrack(const std::vector<double>& times,
 
 }  // namespace
 
-TransformList AnimationClip::sampleLocal(const Skeleton& skeleton, double t) const {
+TransformList AnimationClip::sampleLocal(const Skeleton& skeleton,
+                                         double t) const {
   TransformList locals(skeleton.joints.size());
-  for (size_t j = 0; j < locals.size(); ++j) locals[j] = skeleton.joints[j].rest_local;
+  for (size_t j = 0; j < locals.size(); ++j)
+    locals[j] = skeleton.joints[j].rest_local;
   t = std::clamp(t, start, start + duration);
   for (const JointChannel& channel : channels) {
     if (channel.joint < 0 || channel.joint >= skeleton.jointCount()) continue;
@@ -83,7 +88,8 @@ TransformList AnimationClip::sampleLocal(const Skeleton& skeleton, double t) con
     Eigen::Quaternionf q(rotation);
     Eigen::Vector3f scale = scaling.diagonal();
     if (!channel.translations.empty()) {
-      translation = sampleVector(channel.translation_times, channel.translations, t);
+      translation =
+          sampleVector(channel.translation_times, channel.translations, t);
     }
     if (!channel.rotations.empty()) {
       q = sampleRotation(channel.rotation_times, channel.rotations, t);
@@ -110,12 +116,11 @@ Validation AnimationClip::validate(const Skeleton& skeleton) const {
     }
     const std::string where =
         "channel of joint '" + skeleton.joints[channel.joint].name + "': ";
-    for (Validation v : {validateTrack(channel.translation_times,
-                                       channel.translations, "translation"),
-                         validateTrack(channel.rotation_times, channel.rotations,
-                                       "rotation"),
-                         validateTrack(channel.scale_times, channel.scales,
-                                       "scale")}) {
+    for (Validation v :
+         {validateTrack(channel.translation_times, channel.translations,
+                        "translation"),
+          validateTrack(channel.rotation_times, channel.rotations, "rotation"),
+          validateTrack(channel.scale_times, channel.scales, "scale")}) {
       if (!v) return Validation::fail(where + v.reason());
     }
   }
@@ -135,17 +140,22 @@ AnimationClip makeBendClip(const Skeleton& skeleton, float max_angle_radians,
   for (int j = n - 1; j >= 0; --j) {
     const int parent = skeleton.joints[j].parent;
     if (parent >= 0 && direction[parent].isZero()) {
-      const Eigen::Vector3f offset = skeleton.joints[j].rest_local.translation();
+      const Eigen::Vector3f offset =
+          skeleton.joints[j].rest_local.translation();
       if (offset.norm() > 0) direction[parent] = offset.normalized();
     }
   }
   for (int j = 0; j < n; ++j) {
     if (direction[j].isZero()) {
       const int parent = skeleton.joints[j].parent;
-      const Eigen::Vector3f offset = skeleton.joints[j].rest_local.translation();
-      direction[j] = (parent >= 0 && offset.norm() > 0)
-                         ? Eigen::Vector3f(skeleton.joints[j].rest_local.linear().transpose() * offset.normalized())
-                         : Eigen::Vector3f::UnitX();
+      const Eigen::Vector3f offset =
+          skeleton.joints[j].rest_local.translation();
+      direction[j] =
+          (parent >= 0 && offset.norm() > 0)
+              ? Eigen::Vector3f(
+                    skeleton.joints[j].rest_local.linear().transpose() *
+                    offset.normalized())
+              : Eigen::Vector3f::UnitX();
     }
   }
   const int steps = 16;
@@ -166,8 +176,9 @@ AnimationClip makeBendClip(const Skeleton& skeleton, float max_angle_radians,
       const double t = duration * k / steps;
       const float angle = max_angle_radians * static_cast<float>(k) / steps;
       channel.rotation_times.push_back(t);
-      channel.rotations.push_back(Eigen::Quaternionf(rotation) *
-                                  Eigen::Quaternionf(Eigen::AngleAxisf(angle, axis)));
+      channel.rotations.push_back(
+          Eigen::Quaternionf(rotation) *
+          Eigen::Quaternionf(Eigen::AngleAxisf(angle, axis)));
     }
     clip.channels.push_back(std::move(channel));
   }

@@ -6,8 +6,8 @@ namespace isk {
 
 DualQuaternion DualQuaternion::fromTransform(const Eigen::Affine3f& transform) {
   // Polar decomposition: the closest rotation to the linear part.
-  Eigen::JacobiSVD<Eigen::Matrix3f> svd(transform.linear(),
-                                        Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::JacobiSVD<Eigen::Matrix3f> svd(
+      transform.linear(), Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3f rotation = svd.matrixU() * svd.matrixV().transpose();
   if (rotation.determinant() < 0.f) {
     Eigen::Matrix3f u = svd.matrixU();

@@ -49,7 +49,8 @@ Rig makeTubeRig(const TubeSpec& spec) {
   // small axial component, recomputed below from the triangles anyway).
   for (int i = 0; i < rings; ++i) {
     const float x = length * i / (rings - 1);
-    for (int s = 0; s < segments; ++s) positions.push_back(ring_point(x, s, 1.f));
+    for (int s = 0; s < segments; ++s)
+      positions.push_back(ring_point(x, s, 1.f));
   }
   auto side = [&](int i, int s) { return i * segments + (s % segments); };
   for (int i = 0; i + 1 < rings; ++i) {
@@ -101,24 +102,28 @@ Rig makeTubeRig(const TubeSpec& spec) {
   mesh.positions.resize(n, 3);
   for (int v = 0; v < n; ++v) mesh.positions.row(v) = positions[v];
   mesh.triangles.resize(static_cast<int>(triangles.size()), 3);
-  for (size_t f = 0; f < triangles.size(); ++f) mesh.triangles.row(f) = triangles[f];
+  for (size_t f = 0; f < triangles.size(); ++f)
+    mesh.triangles.row(f) = triangles[f];
   // Area-weighted normals of the closed surface (outward: caps and sides are
   // wound counter-clockwise seen from outside).
   mesh.normals = Matrix3Xf::Zero(n, 3);
   for (const auto& t : triangles) {
-    const Eigen::Vector3f a = positions[t[0]], b = positions[t[1]], c = positions[t[2]];
+    const Eigen::Vector3f a = positions[t[0]], b = positions[t[1]],
+                          c = positions[t[2]];
     const Eigen::Vector3f face = (b - a).cross(c - a);
     for (int k = 0; k < 3; ++k) mesh.normals.row(t[k]) += face.transpose();
   }
   for (int v = 0; v < n; ++v) mesh.normals.row(v).normalize();
-  mesh.parts.push_back({spec.name, 0, n, 0, static_cast<int>(triangles.size())});
+  mesh.parts.push_back(
+      {spec.name, 0, n, 0, static_cast<int>(triangles.size())});
 
   // Skeleton: a chain along +x, identity rotations.
   for (int j = 0; j <= bones; ++j) {
     Joint joint;
     joint.name = spec.joint_names[j];
     joint.parent = j - 1;
-    const float offset = j == 0 ? spec.joint_x[0] : spec.joint_x[j] - spec.joint_x[j - 1];
+    const float offset =
+        j == 0 ? spec.joint_x[0] : spec.joint_x[j] - spec.joint_x[j - 1];
     joint.rest_local = Eigen::Translation3f(offset, 0.f, 0.f);
     joint.inverse_bind = Eigen::Translation3f(-spec.joint_x[j], 0.f, 0.f);
     joint.is_skin_joint = j < bones;
@@ -139,7 +144,8 @@ Rig makeTubeRig(const TubeSpec& spec) {
                                      spec.joint_x[k + 1] - spec.joint_x[k]);
       const float h = spec.blend_width * shorter;
       if (std::abs(x - spec.joint_x[k]) < h) {
-        const float child = smoothstep(spec.joint_x[k] - h, spec.joint_x[k] + h, x);
+        const float child =
+            smoothstep(spec.joint_x[k] - h, spec.joint_x[k] + h, x);
         std::fill(w.begin(), w.end(), 0.f);
         w[k - 1] = 1.f - child;
         w[k] = child;
@@ -164,17 +170,20 @@ Rig makeCylinderRig(const CylinderRigOptions& options) {
       !(options.length > 0.f) || options.rings < 2 || options.segments < 3 ||
       !(options.taper >= 0.f && options.taper < 1.f) ||
       !(options.blend_width > 0.f && options.blend_width <= 0.5f)) {
-    throw Error(ErrorCode::kInvalidArgument,
-                "makeCylinderRig: need 1-8 bones, positive radius and length, "
-                "rings >= 2, segments >= 3, taper in [0, 1), blend width in (0, 0.5]");
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "makeCylinderRig: need 1-8 bones, positive radius and length, "
+        "rings >= 2, segments >= 3, taper in [0, 1), blend width in (0, 0.5]");
   }
   TubeSpec spec;
   spec.name = "cylinder";
   for (int j = 0; j <= options.bones; ++j) {
     spec.joint_x.push_back(options.length * j / options.bones);
-    spec.joint_names.push_back(j < options.bones ? "bone" + std::to_string(j) : "tip");
+    spec.joint_names.push_back(j < options.bones ? "bone" + std::to_string(j)
+                                                 : "tip");
   }
-  const float radius = options.radius, taper = options.taper, length = options.length;
+  const float radius = options.radius, taper = options.taper,
+              length = options.length;
   spec.radii = [=](float x) {
     const float r = radius * (1.f - taper * x / length);
     return Eigen::Vector2f(r, r);
@@ -203,7 +212,8 @@ Rig makeArmRig(int rings_per_unit, int segments) {
     int i = 0;
     while (i + 2 < 7 && x > xs[i + 1]) ++i;
     const float a = smoothstep(xs[i], xs[i + 1], x);
-    return Eigen::Vector2f((1 - a) * ry[i] + a * ry[i + 1], (1 - a) * rz[i] + a * rz[i + 1]);
+    return Eigen::Vector2f((1 - a) * ry[i] + a * ry[i + 1],
+                           (1 - a) * rz[i] + a * rz[i + 1]);
   };
   spec.rings = static_cast<int>(7.4f * rings_per_unit) + 1;
   spec.segments = segments;
@@ -211,7 +221,9 @@ Rig makeArmRig(int rings_per_unit, int segments) {
   return makeTubeRig(spec);
 }
 
-std::vector<std::string> builtinRigNames() { return {"cylinder", "finger", "arm"}; }
+std::vector<std::string> builtinRigNames() {
+  return {"cylinder", "finger", "arm"};
+}
 
 Rig makeBuiltinRig(const std::string& name) {
   if (name == "cylinder") return makeCylinderRig();
@@ -231,9 +243,11 @@ Rig makeBuiltinRig(const std::string& name) {
   }
   if (name == "arm") return makeArmRig();
   std::string names;
-  for (const std::string& n : builtinRigNames()) names += (names.empty() ? "" : ", ") + n;
-  throw Error(ErrorCode::kInvalidArgument,
-              "unknown builtin rig '" + name + "' (builtin rigs: " + names + ")");
+  for (const std::string& n : builtinRigNames())
+    names += (names.empty() ? "" : ", ") + n;
+  throw Error(
+      ErrorCode::kInvalidArgument,
+      "unknown builtin rig '" + name + "' (builtin rigs: " + names + ")");
 }
 
 }  // namespace isk

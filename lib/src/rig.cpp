@@ -10,7 +10,8 @@ namespace isk {
 Validation Rig::validate() const {
   if (Validation v = mesh.validate(); !v) return v;
   if (Validation v = skeleton.validate(); !v) return v;
-  Validation weights_ok = weights.validate(mesh.vertexCount(), skeleton.jointCount());
+  Validation weights_ok =
+      weights.validate(mesh.vertexCount(), skeleton.jointCount());
   if (!weights_ok) {
     // Name the vertex by the mesh it came from ("mesh 'Body' vertex 12").
     const std::string& reason = weights_ok.reason();

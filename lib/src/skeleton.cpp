@@ -34,9 +34,11 @@ Validation Skeleton::validate() const {
   }
   for (int j = 0; j < jointCount(); ++j) {
     const Joint& joint = joints[j];
-    const std::string where = "joint '" + joint.name + "' (" + std::to_string(j) + ")";
+    const std::string where =
+        "joint '" + joint.name + "' (" + std::to_string(j) + ")";
     if (joint.parent >= j || joint.parent < -1) {
-      return Validation::fail(where + " has parent " + std::to_string(joint.parent) +
+      return Validation::fail(where + " has parent " +
+                              std::to_string(joint.parent) +
                               ": parents must precede children");
     }
     if (!joint.rest_local.matrix().allFinite() ||
@@ -46,7 +48,8 @@ Validation Skeleton::validate() const {
     // Singular values of the bind linear part: equal (uniform scale) for a
     // rigid frame up to a unit conversion; anything else is scale or shear.
     const Eigen::Vector3f sigma =
-        Eigen::JacobiSVD<Eigen::Matrix3f>(joint.inverse_bind.linear()).singularValues();
+        Eigen::JacobiSVD<Eigen::Matrix3f>(joint.inverse_bind.linear())
+            .singularValues();
     if (!(sigma(2) > 0.f)) {
       return Validation::fail(where + " has a singular inverse bind matrix");
     }

@@ -10,7 +10,8 @@ namespace isk {
 
 int SkinWeights::maxInfluences() const {
   int most = 0;
-  for (int v = 0; v < vertexCount(); ++v) most = std::max(most, influenceCount(v));
+  for (int v = 0; v < vertexCount(); ++v)
+    most = std::max(most, influenceCount(v));
   return most;
 }
 
@@ -59,8 +60,10 @@ SkinWeights::NormalizeReport SkinWeights::normalize(float tolerance) {
     if (sum <= 0) continue;  // validate() reports vertices without weight
     if (std::abs(sum - 1.0) > tolerance) {
       ++report.off_count;
-      report.min_sum = first ? float(sum) : std::min(report.min_sum, float(sum));
-      report.max_sum = first ? float(sum) : std::max(report.max_sum, float(sum));
+      report.min_sum =
+          first ? float(sum) : std::min(report.min_sum, float(sum));
+      report.max_sum =
+          first ? float(sum) : std::max(report.max_sum, float(sum));
       first = false;
     }
     for (uint32_t i = offsets[v]; i < offsets[v + 1]; ++i) {
@@ -72,9 +75,9 @@ SkinWeights::NormalizeReport SkinWeights::normalize(float tolerance) {
 
 Validation SkinWeights::validate(int vertex_count, int joint_count) const {
   if (vertexCount() != vertex_count) {
-    return Validation::fail("skin weights have " + std::to_string(vertexCount()) +
-                            " rows for " + std::to_string(vertex_count) +
-                            " vertices");
+    return Validation::fail("skin weights have " +
+                            std::to_string(vertexCount()) + " rows for " +
+                            std::to_string(vertex_count) + " vertices");
   }
   if (joints.size() != weights.size() || offsets.empty() || offsets[0] != 0 ||
       offsets.back() != joints.size()) {

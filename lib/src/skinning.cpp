@@ -31,7 +31,8 @@ void skinLinearBlend(const SkinningJob& job, const std::vector<float>& packed) {
       r1 += w.weights[i] * Vec4(m[4], m[5], m[6], m[7]);
       r2 += w.weights[i] * Vec4(m[8], m[9], m[10], m[11]);
     }
-    const Vec4 p(job.rest_positions->coeff(v, 0), job.rest_positions->coeff(v, 1),
+    const Vec4 p(job.rest_positions->coeff(v, 0),
+                 job.rest_positions->coeff(v, 1),
                  job.rest_positions->coeff(v, 2), 1.f);
     job.out_positions->row(v) = Vec3(r0.dot(p), r1.dot(p), r2.dot(p));
     const Vec3 nrm = job.rest_normals->row(v).transpose();
@@ -43,10 +44,13 @@ void skinLinearBlend(const SkinningJob& job, const std::vector<float>& packed) {
   }
 }
 
-void skinDualQuaternion(const SkinningJob& job, const std::vector<float>& packed) {
+void skinDualQuaternion(const SkinningJob& job,
+                        const std::vector<float>& packed) {
   const SkinWeights& w = *job.weights;
   const int n = static_cast<int>(job.rest_positions->rows());
-  auto real_of = [&](uint32_t j) { return Vec4(Eigen::Map<const Vec4>(&packed[8 * j])); };
+  auto real_of = [&](uint32_t j) {
+    return Vec4(Eigen::Map<const Vec4>(&packed[8 * j]));
+  };
   auto dual_of = [&](uint32_t j) {
     return Vec4(Eigen::Map<const Vec4>(&packed[8 * j + 4]));
   };
@@ -67,7 +71,8 @@ void skinDualQuaternion(const SkinningJob& job, const std::vector<float>& packed
     const Vec3 t = 2.f * (real.w() * dv - dual.w() * rv + rv.cross(dv));
     const Vec3 p = job.rest_positions->row(v).transpose();
     job.out_positions->row(v) = quatRotate(real, p) + t;
-    job.out_normals->row(v) = quatRotate(real, job.rest_normals->row(v).transpose());
+    job.out_normals->row(v) =
+        quatRotate(real, job.rest_normals->row(v).transpose());
   }
 }
 
@@ -84,51 +89,58 @@ std::vector<float> packJointTransforms(SkinningMethod method,
     packed.resize(12 * skinning.size());
     for (size_t j = 0; j < skinning.size(); ++j) {
       for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 4; ++c) packed[12 * j + 4 * r + c] = skinning[j].matrix()(r, c);
+        for (int c = 0; c < 4; ++c)
+          packed[12 * j + 4 * r + c] = skinning[j].matrix()(r, c);
       }
     }
   } else {
     packed.resize(8 * skinning.size());
     for (size_t j = 0; j < skinning.size(); ++j) {
-      packDualQuaternion(DualQuaternion::fromTransform(skinning[j]), &packed[8 * j]);
+      packDualQuaternion(DualQuaternion::fromTransform(skinning[j]),
+                         &packed[8 * j]);
     }
   }
   return packed;
 }
 
 Validation SkinningJob::validate() const {
-  if (!rest_positions || !rest_normals || !weights || !skinning || !out_positions ||
-      !out_normals) {
-    return Validation::fail("an input or output of the skinning job is not set");
+  if (!rest_positions || !rest_normals || !weights || !skinning ||
+      !out_positions || !out_normals) {
+    return Validation::fail(
+        "an input or output of the skinning job is not set");
   }
   const int n = static_cast<int>(rest_positions->rows());
   if (rest_normals->rows() != n) {
-    return Validation::fail("rest normals have " + std::to_string(rest_normals->rows()) +
+    return Validation::fail("rest normals have " +
+                            std::to_string(rest_normals->rows()) +
                             " rows for " + std::to_string(n) + " vertices");
   }
   // Only what run() relies on: a full weights check per frame would cost as
   // much as skinning; Rig::validate() does it once.
-  if (weights->vertexCount() != n || weights->offsets.back() != weights->joints.size() ||
+  if (weights->vertexCount() != n ||
+      weights->offsets.back() != weights->joints.size() ||
       weights->weights.size() != weights->joints.size()) {
-    return Validation::fail("skin weights have " + std::to_string(weights->vertexCount()) +
+    return Validation::fail("skin weights have " +
+                            std::to_string(weights->vertexCount()) +
                             " rows for " + std::to_string(n) + " vertices");
   }
   for (int v = 0; v < n; ++v) {
     if (weights->offsets[v + 1] <= weights->offsets[v]) {
-      return Validation::fail("vertex " + std::to_string(v) + " has no skin weight");
+      return Validation::fail("vertex " + std::to_string(v) +
+                              " has no skin weight");
     }
   }
   for (uint32_t joint : weights->joints) {
     if (joint >= skinning->size()) {
-      return Validation::fail("a vertex is weighted to joint " + std::to_string(joint) +
-                              " but " + std::to_string(skinning->size()) +
-                              " transforms were given");
+      return Validation::fail(
+          "a vertex is weighted to joint " + std::to_string(joint) + " but " +
+          std::to_string(skinning->size()) + " transforms were given");
     }
   }
   for (size_t j = 0; j < skinning->size(); ++j) {
     if (!(*skinning)[j].matrix().allFinite()) {
-      return Validation::fail("skinning transform of joint " + std::to_string(j) +
-                              " is not finite");
+      return Validation::fail("skinning transform of joint " +
+                              std::to_string(j) + " is not finite");
     }
   }
   return Validation::ok();

@@ -24,7 +24,8 @@ Rig subdivideOnce(const Rig& rig) {
   };
   TriangleMatrix triangles(4 * f, 3);
   for (int t = 0; t < f; ++t) {
-    const int a = in.triangles(t, 0), b = in.triangles(t, 1), c = in.triangles(t, 2);
+    const int a = in.triangles(t, 0), b = in.triangles(t, 1),
+              c = in.triangles(t, 2);
     const int ab = midpoint(a, b), bc = midpoint(b, c), ca = midpoint(c, a);
     triangles.row(4 * t) << a, ab, ca;
     triangles.row(4 * t + 1) << ab, b, bc;
@@ -52,10 +53,12 @@ Rig subdivideOnce(const Rig& rig) {
   for (size_t e = 0; e < new_edges.size(); ++e) {
     const auto [a, b] = new_edges[e];
     const int v = n + static_cast<int>(e);
-    out.mesh.positions.row(v) = 0.5f * (in.positions.row(a) + in.positions.row(b));
+    out.mesh.positions.row(v) =
+        0.5f * (in.positions.row(a) + in.positions.row(b));
     Eigen::RowVector3f normal = in.normals.row(a) + in.normals.row(b);
-    out.mesh.normals.row(v) =
-        normal.norm() > 0.f ? Eigen::RowVector3f(normal.normalized()) : in.normals.row(a);
+    out.mesh.normals.row(v) = normal.norm() > 0.f
+                                  ? Eigen::RowVector3f(normal.normalized())
+                                  : in.normals.row(a);
     for (int end : {a, b}) {
       for (uint32_t i = w.offsets[end]; i < w.offsets[end + 1]; ++i) {
         lists[v].emplace_back(w.joints[i], 0.5f * w.weights[i]);
@@ -76,7 +79,8 @@ Rig subdivideOnce(const Rig& rig) {
 Rig subdivideRig(const Rig& rig, int levels) {
   if (levels < 0 || levels > 6) {
     throw Error(ErrorCode::kInvalidArgument,
-                "subdivideRig: levels must be in 0..6 (got " + std::to_string(levels) + ")");
+                "subdivideRig: levels must be in 0..6 (got " +
+                    std::to_string(levels) + ")");
   }
   Rig result = rig;
   for (int level = 0; level < levels; ++level) result = subdivideOnce(result);

@@ -6,34 +6,39 @@
 
 namespace isk {
 
-VertexTriangleAdjacency VertexTriangleAdjacency::build(const TriangleMatrix& triangles,
-                                                       int vertex_count) {
+VertexTriangleAdjacency VertexTriangleAdjacency::build(
+    const TriangleMatrix& triangles, int vertex_count) {
   VertexTriangleAdjacency adjacency;
   adjacency.offsets.assign(vertex_count + 1, 0);
   for (int f = 0; f < triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) ++adjacency.offsets[triangles(f, k) + 1];
   }
-  for (int v = 0; v < vertex_count; ++v) adjacency.offsets[v + 1] += adjacency.offsets[v];
+  for (int v = 0; v < vertex_count; ++v)
+    adjacency.offsets[v + 1] += adjacency.offsets[v];
   adjacency.triangles.resize(adjacency.offsets[vertex_count]);
-  std::vector<uint32_t> cursor(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  std::vector<uint32_t> cursor(adjacency.offsets.begin(),
+                               adjacency.offsets.end() - 1);
   for (int f = 0; f < triangles.rows(); ++f) {
-    for (int k = 0; k < 3; ++k) adjacency.triangles[cursor[triangles(f, k)]++] = f;
+    for (int k = 0; k < 3; ++k)
+      adjacency.triangles[cursor[triangles(f, k)]++] = f;
   }
   return adjacency;
 }
 
 Validation VertexNormalsJob::validate() const {
-  if (!positions || !triangles || !adjacency || !fallback_normals || !out_normals) {
+  if (!positions || !triangles || !adjacency || !fallback_normals ||
+      !out_normals) {
     return Validation::fail("an input or output of the normals job is not set");
   }
   const int n = static_cast<int>(positions->rows());
   if (fallback_normals->rows() != n) {
     return Validation::fail("fallback normals have " +
-                            std::to_string(fallback_normals->rows()) + " rows for " +
-                            std::to_string(n) + " vertices");
+                            std::to_string(fallback_normals->rows()) +
+                            " rows for " + std::to_string(n) + " vertices");
   }
   if (adjacency->offsets.size() != static_cast<size_t>(n) + 1 ||
-      adjacency->triangles.size() != 3 * static_cast<size_t>(triangles->rows())) {
+      adjacency->triangles.size() !=
+          3 * static_cast<size_t>(triangles->rows())) {
     return Validation::fail("the adjacency was not built for this mesh");
   }
   return Validation::ok();
@@ -45,11 +50,15 @@ void VertexNormalsJob::run() const {
   out_normals->resize(n, 3);
   for (int v = 0; v < n; ++v) {
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-    for (uint32_t i = adjacency->offsets[v]; i < adjacency->offsets[v + 1]; ++i) {
+    for (uint32_t i = adjacency->offsets[v]; i < adjacency->offsets[v + 1];
+         ++i) {
       const uint32_t t = adjacency->triangles[i];
-      const Eigen::Vector3f a = positions->row(triangles->coeff(t, 0)).transpose();
-      const Eigen::Vector3f b = positions->row(triangles->coeff(t, 1)).transpose();
-      const Eigen::Vector3f c = positions->row(triangles->coeff(t, 2)).transpose();
+      const Eigen::Vector3f a =
+          positions->row(triangles->coeff(t, 0)).transpose();
+      const Eigen::Vector3f b =
+          positions->row(triangles->coeff(t, 1)).transpose();
+      const Eigen::Vector3f c =
+          positions->row(triangles->coeff(t, 2)).transpose();
       sum += (b - a).cross(c - a);
     }
     const float len = std::sqrt(sum.dot(sum));

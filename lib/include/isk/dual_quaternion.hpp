@@ -18,7 +18,8 @@ struct DualQuaternion {
   Eigen::Vector3f rotateVector(const Eigen::Vector3f& v) const;
 };
 
-// The 8 floats the kernels take per joint: real (x, y, z, w), dual (x, y, z, w).
+// The 8 floats the kernels take per joint: real (x, y, z, w), dual (x, y, z,
+// w).
 void packDualQuaternion(const DualQuaternion& dq, float out[8]);
 
 }  // namespace isk

@@ -8,7 +8,8 @@ namespace isk {
 // Enclosed volume by the divergence theorem (exact for closed meshes,
 // orientation-dependent sign; only ratios between frames of one mesh are
 // meaningful for open meshes). Accumulated in double.
-double enclosedVolume(const Matrix3Xf& positions, const TriangleMatrix& triangles);
+double enclosedVolume(const Matrix3Xf& positions,
+                      const TriangleMatrix& triangles);
 
 // Diagonal of the axis-aligned bounding box; 0 for no vertex.
 float boundingBoxDiagonal(const Matrix3Xf& positions);

@@ -9,12 +9,12 @@
 namespace isk {
 
 struct CylinderRigOptions {
-  int bones = 2;          // 1 to 8 bones along +x, equal lengths
-  float radius = 1.f;     // model units
-  float length = 8.f;     // whole cylinder
-  int rings = 64;         // vertex rings along the length
-  int segments = 48;      // vertices around each ring
-  float taper = 0.f;      // tip radius = radius * (1 - taper)
+  int bones = 2;       // 1 to 8 bones along +x, equal lengths
+  float radius = 1.f;  // model units
+  float length = 8.f;  // whole cylinder
+  int rings = 64;      // vertex rings along the length
+  int segments = 48;   // vertices around each ring
+  float taper = 0.f;   // tip radius = radius * (1 - taper)
   // Width of the weight blend around each inner joint, in bone lengths.
   float blend_width = 0.25f;
 };

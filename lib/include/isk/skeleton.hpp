@@ -18,10 +18,10 @@ namespace isk {
 
 struct Joint {
   std::string name;
-  int parent = -1;                // index of the parent joint, -1 for roots
-  Eigen::Affine3f rest_local;     // local to parent (or to root_parent)
-  Eigen::Affine3f inverse_bind;   // model space -> joint space at bind pose
-  bool is_skin_joint = false;     // referenced by the skin weights of the file
+  int parent = -1;               // index of the parent joint, -1 for roots
+  Eigen::Affine3f rest_local;    // local to parent (or to root_parent)
+  Eigen::Affine3f inverse_bind;  // model space -> joint space at bind pose
+  bool is_skin_joint = false;    // referenced by the skin weights of the file
 };
 
 struct Skeleton {

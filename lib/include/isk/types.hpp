@@ -12,7 +12,8 @@ namespace isk {
 // contiguous float array (x0 y0 z0 x1 ...).
 using Matrix3Xf = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
 // #F by 3 vertex indices of triangles, row-major.
-using TriangleMatrix = Eigen::Matrix<int32_t, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using TriangleMatrix =
+    Eigen::Matrix<int32_t, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 // One rigid-or-affine transform per joint, model space.
 using TransformList = std::vector<Eigen::Affine3f>;

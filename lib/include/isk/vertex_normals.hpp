@@ -25,11 +25,11 @@ struct VertexTriangleAdjacency {
 };
 
 struct VertexNormalsJob {
-  const Matrix3Xf* positions = nullptr;                 // #V by 3
-  const TriangleMatrix* triangles = nullptr;            // #F by 3
-  const VertexTriangleAdjacency* adjacency = nullptr;   // built for them
-  const Matrix3Xf* fallback_normals = nullptr;          // #V by 3
-  Matrix3Xf* out_normals = nullptr;                     // resized to #V by 3
+  const Matrix3Xf* positions = nullptr;                // #V by 3
+  const TriangleMatrix* triangles = nullptr;           // #F by 3
+  const VertexTriangleAdjacency* adjacency = nullptr;  // built for them
+  const Matrix3Xf* fallback_normals = nullptr;         // #V by 3
+  Matrix3Xf* out_normals = nullptr;                    // resized to #V by 3
 
   Validation validate() const;
   void run() const;

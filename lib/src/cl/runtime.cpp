@@ -14,8 +14,8 @@ struct DeviceEntry {
   ClDeviceInfo info;
 };
 
-ClDeviceInfo describeDevice(const cl::Platform& platform, const cl::Device& device,
-                            int index) {
+ClDeviceInfo describeDevice(const cl::Platform& platform,
+                            const cl::Device& device, int index) {
   ClDeviceInfo info;
   info.index = index;
   info.platform = platform.getInfo<CL_PLATFORM_NAME>();
@@ -25,10 +25,12 @@ ClDeviceInfo describeDevice(const cl::Platform& platform, const cl::Device& devi
   info.is_gpu = (type & CL_DEVICE_TYPE_GPU) != 0;
   info.is_cpu = (type & CL_DEVICE_TYPE_CPU) != 0;
   // Drivers pad names with spaces or NULs.
-  while (!info.name.empty() && (info.name.back() == '\0' || info.name.back() == ' ')) {
+  while (!info.name.empty() &&
+         (info.name.back() == '\0' || info.name.back() == ' ')) {
     info.name.pop_back();
   }
-  while (!info.platform.empty() && info.platform.back() == '\0') info.platform.pop_back();
+  while (!info.platform.empty() && info.platform.back() == '\0')
+    info.platform.pop_back();
   return info;
 }
 
@@ -50,7 +52,8 @@ std::vector<DeviceEntry> enumerateDevices() {
     }
     for (const cl::Device& device : devices) {
       const int index = static_cast<int>(entries.size());
-      entries.push_back({platform, device, describeDevice(platform, device, index)});
+      entries.push_back(
+          {platform, device, describeDevice(platform, device, index)});
     }
   }
   return entries;
@@ -63,7 +66,8 @@ std::string listForMessage(const std::vector<DeviceEntry>& entries) {
   }
   std::string text = "devices seen:";
   for (const DeviceEntry& e : entries) {
-    text += " [" + std::to_string(e.info.index) + "] " + e.info.describe() + ";";
+    text +=
+        " [" + std::to_string(e.info.index) + "] " + e.info.describe() + ";";
   }
   return text;
 }
@@ -78,9 +82,10 @@ std::string deviceBuildOptions(const ClDeviceInfo& info) {
 }  // namespace
 
 void throwClError(const cl::Error& error, const std::string& what) {
-  throw Error(ErrorCode::kOpenCl,
-              what + ": " + error.what() + " failed with " + clStatusName(error.err()),
-              error.err());
+  throw Error(
+      ErrorCode::kOpenCl,
+      what + ": " + error.what() + " failed with " + clStatusName(error.err()),
+      error.err());
 }
 
 double eventMilliseconds(const cl::Event& event) {
@@ -118,7 +123,8 @@ std::shared_ptr<ClContext> ClContext::create(const std::string& selection_in) {
     if (!chosen && !entries.empty()) chosen = &entries.front();
   } else if (selection == "gpu" || selection == "cpu") {
     for (const auto& e : entries) {
-      if (!chosen && (selection == "gpu" ? e.info.is_gpu : e.info.is_cpu)) chosen = &e;
+      if (!chosen && (selection == "gpu" ? e.info.is_gpu : e.info.is_cpu))
+        chosen = &e;
     }
   } else {
     std::string number = selection;
@@ -140,8 +146,8 @@ std::shared_ptr<ClContext> ClContext::create(const std::string& selection_in) {
   try {
     result->device_ = chosen->device;
     result->context_ = cl::Context(chosen->device);
-    result->queue_ =
-        cl::CommandQueue(result->context_, chosen->device, CL_QUEUE_PROFILING_ENABLE);
+    result->queue_ = cl::CommandQueue(result->context_, chosen->device,
+                                      CL_QUEUE_PROFILING_ENABLE);
   } catch (const cl::Error& e) {
     throwClError(e, "creating a context on " + chosen->info.describe());
   }
@@ -150,11 +156,13 @@ std::shared_ptr<ClContext> ClContext::create(const std::string& selection_in) {
   return result;
 }
 
-std::shared_ptr<ClContext> ClContext::wrap(cl_context context, cl_device_id device,
+std::shared_ptr<ClContext> ClContext::wrap(cl_context context,
+                                           cl_device_id device,
                                            cl_command_queue queue) {
   if (!context || !device || !queue) {
-    throw Error(ErrorCode::kInvalidArgument,
-                "ClContext::wrap: the context, device and queue must not be null");
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "ClContext::wrap: the context, device and queue must not be null");
   }
   std::shared_ptr<ClContext> result(new ClContext());
   try {
@@ -163,15 +171,16 @@ std::shared_ptr<ClContext> ClContext::wrap(cl_context context, cl_device_id devi
     result->queue_ = cl::CommandQueue(queue, /*retainObject=*/true);
     if (result->queue_.getInfo<CL_QUEUE_CONTEXT>()() != context ||
         result->queue_.getInfo<CL_QUEUE_DEVICE>()() != device) {
-      throw Error(ErrorCode::kInvalidArgument,
-                  "ClContext::wrap: the queue does not belong to the given context "
-                  "and device");
+      throw Error(
+          ErrorCode::kInvalidArgument,
+          "ClContext::wrap: the queue does not belong to the given context "
+          "and device");
     }
     const cl::Platform platform(result->device_.getInfo<CL_DEVICE_PLATFORM>(),
                                 /*retainObject=*/true);
     result->info_ = describeDevice(platform, result->device_, -1);
-    result->profiling_ =
-        (result->queue_.getInfo<CL_QUEUE_PROPERTIES>() & CL_QUEUE_PROFILING_ENABLE) != 0;
+    result->profiling_ = (result->queue_.getInfo<CL_QUEUE_PROPERTIES>() &
+                          CL_QUEUE_PROFILING_ENABLE) != 0;
   } catch (const cl::Error& e) {
     throwClError(e, "ClContext::wrap: querying the application's objects");
   }

@@ -9,10 +9,13 @@
 namespace isk {
 namespace {
 
-size_t roundUp(size_t n, size_t multiple) { return (n + multiple - 1) / multiple * multiple; }
+size_t roundUp(size_t n, size_t multiple) {
+  return (n + multiple - 1) / multiple * multiple;
+}
 
 template <typename T>
-cl::Buffer uploadReadOnly(const cl::Context& context, const std::vector<T>& data) {
+cl::Buffer uploadReadOnly(const cl::Context& context,
+                          const std::vector<T>& data) {
   // A zero-sized buffer is invalid in OpenCL: keep one element at least.
   std::vector<T> padded = data.empty() ? std::vector<T>(1) : data;
   return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
@@ -20,7 +23,8 @@ cl::Buffer uploadReadOnly(const cl::Context& context, const std::vector<T>& data
 }
 
 double since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now() - start)
       .count();
 }
 
@@ -31,9 +35,11 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
     : context_(std::move(context)),
       vertex_count_(mesh.vertexCount()),
       joint_count_(joint_count) {
-  if (!context_) throw Error(ErrorCode::kInvalidArgument, "ClSkinning: no context");
+  if (!context_)
+    throw Error(ErrorCode::kInvalidArgument, "ClSkinning: no context");
   mesh.validate().throwIfFailed("ClSkinning mesh");
-  weights.validate(vertex_count_, joint_count).throwIfFailed("ClSkinning weights");
+  weights.validate(vertex_count_, joint_count)
+      .throwIfFailed("ClSkinning weights");
   const VertexTriangleAdjacency adjacency =
       VertexTriangleAdjacency::build(mesh.triangles, vertex_count_);
   const cl::Context& ctx = context_->context();
@@ -53,17 +59,20 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
     influence_weights_ = uploadReadOnly(ctx, weights.weights);
     const int32_t* t = mesh.triangles.data();
     triangles_ = uploadReadOnly(
-        ctx, std::vector<int32_t>(t, t + 3 * static_cast<size_t>(mesh.triangleCount())));
+        ctx, std::vector<int32_t>(
+                 t, t + 3 * static_cast<size_t>(mesh.triangleCount())));
     adjacency_offsets_ = uploadReadOnly(ctx, adjacency.offsets);
     adjacency_triangles_ = uploadReadOnly(ctx, adjacency.triangles);
     // Large enough for either layout (LBS 12 floats per joint, DQS 8).
-    joint_transforms_ = cl::Buffer(ctx, CL_MEM_READ_ONLY,
-                                   12 * sizeof(float) * std::max(joint_count, 1));
-    skinned_normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
+    joint_transforms_ = cl::Buffer(
+        ctx, CL_MEM_READ_ONLY, 12 * sizeof(float) * std::max(joint_count, 1));
+    skinned_normals_ =
+        cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
     out_positions_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
     out_normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
   } catch (const cl::Error& e) {
-    throwClError(e, "ClSkinning: uploading the mesh to " + context_->info().describe());
+    throwClError(
+        e, "ClSkinning: uploading the mesh to " + context_->info().describe());
   }
 }
 
@@ -77,8 +86,9 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
   }
   for (size_t j = 0; j < skinning.size(); ++j) {
     if (!skinning[j].matrix().allFinite()) {
-      throw Error(ErrorCode::kInvalidArgument, "ClSkinning::run: the transform of joint " +
-                                                   std::to_string(j) + " is not finite");
+      throw Error(ErrorCode::kInvalidArgument,
+                  "ClSkinning::run: the transform of joint " +
+                      std::to_string(j) + " is not finite");
     }
   }
   const std::vector<float> packed = packJointTransforms(method, skinning);
@@ -90,15 +100,17 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
   try {
     auto start = std::chrono::steady_clock::now();
     cl::Event upload, skin, normals;
-    queue.enqueueWriteBuffer(joint_transforms_, CL_FALSE, 0, packed.size() * sizeof(float),
-                             packed.data(), nullptr, &upload);
+    queue.enqueueWriteBuffer(joint_transforms_, CL_FALSE, 0,
+                             packed.size() * sizeof(float), packed.data(),
+                             nullptr, &upload);
     // The host array dies with this call: the copy must be done before return.
     upload.wait();
     times_.upload_ms = profiling ? eventMilliseconds(upload) : since(start);
 
     cl::Kernel& kernel =
         method == SkinningMethod::kLinearBlend ? lbs_kernel_ : dqs_kernel_;
-    const cl::Buffer& normals_target = recompute_normals ? skinned_normals_ : out_normals_;
+    const cl::Buffer& normals_target =
+        recompute_normals ? skinned_normals_ : out_normals_;
     kernel.setArg(0, n);
     kernel.setArg(1, rest_positions_);
     kernel.setArg(2, rest_normals_);
@@ -109,7 +121,8 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
     kernel.setArg(7, out_positions_);
     kernel.setArg(8, normals_target);
     start = std::chrono::steady_clock::now();
-    queue.enqueueNDRangeKernel(kernel, cl::NullRange, global, cl::NullRange, nullptr, &skin);
+    queue.enqueueNDRangeKernel(kernel, cl::NullRange, global, cl::NullRange,
+                               nullptr, &skin);
     if (!profiling) {
       skin.wait();
       times_.skinning_ms = since(start);
@@ -123,8 +136,8 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
       normals_kernel_.setArg(5, skinned_normals_);
       normals_kernel_.setArg(6, out_normals_);
       start = std::chrono::steady_clock::now();
-      queue.enqueueNDRangeKernel(normals_kernel_, cl::NullRange, global, cl::NullRange,
-                                 nullptr, &normals);
+      queue.enqueueNDRangeKernel(normals_kernel_, cl::NullRange, global,
+                                 cl::NullRange, nullptr, &normals);
       if (!profiling) {
         normals.wait();
         times_.normals_ms = since(start);
@@ -136,7 +149,8 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
       times_.normals_ms = recompute_normals ? eventMilliseconds(normals) : 0.0;
     }
   } catch (const cl::Error& e) {
-    throwClError(e, std::string("ClSkinning::run (") + skinningMethodName(method) + ") on " +
+    throwClError(e, std::string("ClSkinning::run (") +
+                        skinningMethodName(method) + ") on " +
                         context_->info().describe());
   }
 }
@@ -147,9 +161,10 @@ void ClSkinning::readPositions(Matrix3Xf& out) {
     cl::Event read;
     const auto start = std::chrono::steady_clock::now();
     context_->queue().enqueueReadBuffer(out_positions_, CL_TRUE, 0,
-                                        out.size() * sizeof(float), out.data(), nullptr,
-                                        &read);
-    times_.readback_ms = context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
+                                        out.size() * sizeof(float), out.data(),
+                                        nullptr, &read);
+    times_.readback_ms =
+        context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSkinning::readPositions");
   }
@@ -161,8 +176,8 @@ void ClSkinning::readNormals(Matrix3Xf& out) {
     cl::Event read;
     const auto start = std::chrono::steady_clock::now();
     context_->queue().enqueueReadBuffer(out_normals_, CL_TRUE, 0,
-                                        out.size() * sizeof(float), out.data(), nullptr,
-                                        &read);
+                                        out.size() * sizeof(float), out.data(),
+                                        nullptr, &read);
     times_.readback_ms +=
         context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
   } catch (const cl::Error& e) {

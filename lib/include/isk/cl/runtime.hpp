@@ -52,7 +52,8 @@ class ClContext {
   // Uses the application's objects (retained, not copied). The queue must
   // belong to the context and the device. Throws isk::Error(kInvalidArgument)
   // when they do not match, kOpenCl when a query fails.
-  static std::shared_ptr<ClContext> wrap(cl_context context, cl_device_id device,
+  static std::shared_ptr<ClContext> wrap(cl_context context,
+                                         cl_device_id device,
                                          cl_command_queue queue);
 
   const cl::Context& context() const { return context_; }
