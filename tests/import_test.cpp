@@ -14,6 +14,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -903,6 +904,44 @@ TEST(ImportErrors, NonUniformScaleInInverseBind) {
                          Eigen::Translation3f(0.f, -1.f, 0.f);
   expectImportError(writeFile(dir.file("mirrored.gltf"), quadGltf(q)),
                     ErrorCode::kMalformedAsset, {"joint 'child'", "mirrored"});
+}
+
+// Progress goes through every stage and ends at 1, on a procedural rig
+// written as glTF and on the largest shared asset.
+void expectProgressReported(const std::string& path) {
+  std::vector<std::pair<std::string, float>> calls;
+  ImportOptions options;
+  options.progress = [&](const char* stage, float fraction) {
+    calls.emplace_back(stage, fraction);
+  };
+  importRig(path, options);
+  ASSERT_FALSE(calls.empty()) << path;
+  std::set<std::string> stages;
+  for (const auto& [stage, fraction] : calls) {
+    stages.insert(stage);
+    EXPECT_GE(fraction, 0.f);
+    EXPECT_LE(fraction, 1.f);
+  }
+  EXPECT_EQ(stages,
+            (std::set<std::string>{"reading", "processing", "building"}));
+  EXPECT_EQ(calls.back().first, "building");
+  EXPECT_FLOAT_EQ(calls.back().second, 1.f);
+}
+
+TEST(ImportProgress, ReportsEveryStageOnAProceduralRig) {
+  ScopedTempDir dir;
+  CylinderRigOptions options;
+  options.rings = 12;
+  options.segments = 8;
+  expectProgressReported(
+      writeFile(dir.file("cylinder.gltf"), rigGltf(makeCylinderRig(options))));
+}
+
+TEST(ImportProgress, ReportsEveryStageOnAnAsset) {
+  if (!test::haveAssets()) {
+    GTEST_SKIP() << test::missingAssetsMessage("import progress on an asset");
+  }
+  expectProgressReported(samples::dataFile("human-addon-animations.glb"));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <assimp/Importer.hpp>
+#include <assimp/ProgressHandler.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -46,6 +47,7 @@ class Loader {
   }
   void warn(const std::string& what) { rig_.warnings.push_back(what); }
 
+  void report(const char* stage, float fraction) const;
   void checkReadable() const;
   void checkFiniteMeshes() const;
   void collectNodes(const aiNode* node, int parent);
@@ -597,9 +599,35 @@ void Loader::addClip(unsigned index) {
   rig_.clips.push_back(std::move(clip));
 }
 
+// Forwards Assimp's progress (parsing, then post-processing) to
+// ImportOptions::progress under the current stage's name.
+class ProgressForwarder : public Assimp::ProgressHandler {
+ public:
+  explicit ProgressForwarder(const ImportOptions& options)
+      : options_(options) {}
+  bool Update(float percentage) override {
+    if (options_.progress && percentage >= 0.f) {
+      options_.progress(stage, std::min(percentage, 1.f));
+    }
+    return true;  // never cancel
+  }
+  const char* stage = "reading";
+
+ private:
+  const ImportOptions& options_;
+};
+
+void Loader::report(const char* stage, float fraction) const {
+  if (options_.progress) options_.progress(stage, fraction);
+}
+
 Rig Loader::load() {
   checkReadable();
   Assimp::Importer importer;
+  // The importer owns and deletes its progress handler.
+  auto* progress = new ProgressForwarder(options_);
+  importer.SetProgressHandler(progress);
+  report("reading", 0.f);
   importer.SetPropertyBool(AI_CONFIG_IMPORT_FBX_PRESERVE_PIVOTS, false);
   // A file without meshes must stay without: no made-up skeleton mesh.
   importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
@@ -609,6 +637,8 @@ Rig Loader::load() {
   scene_ = importer.ReadFile(path_, 0);
   if (scene_ == nullptr) fail(importer.GetErrorString());
   if (scene_->mNumMeshes == 0) fail("no mesh in the file");
+  progress->stage = "processing";
+  report("processing", 0.f);
   scene_ = importer.ApplyPostProcessing(aiProcess_ValidateDataStructure);
   if (scene_ == nullptr) fail(importer.GetErrorString());
   checkFiniteMeshes();
@@ -618,11 +648,15 @@ Rig Loader::load() {
   if (scene_ == nullptr) fail(importer.GetErrorString());
   if (scene_->mRootNode == nullptr) fail("the scene has no node");
   rig_.source = path_;
+  report("building", 0.f);
 
   collectNodes(scene_->mRootNode, -1);
   findMeshNodes();
   buildSkeleton();
-  for (unsigned m = 0; m < scene_->mNumMeshes; ++m) addMesh(m);
+  for (unsigned m = 0; m < scene_->mNumMeshes; ++m) {
+    addMesh(m);
+    report("building", 0.5f * (m + 1) / scene_->mNumMeshes);
+  }
   if (rig_.mesh.vertexCount() == 0) {
     fail("no mesh with triangles is attached to the skeleton");
   }
@@ -633,7 +667,11 @@ Rig Loader::load() {
   rig_.weights.normalize(options_.weight_sum_tolerance);
   rig_.weights.sortByWeight();
 
-  for (unsigned a = 0; a < scene_->mNumAnimations; ++a) addClip(a);
+  for (unsigned a = 0; a < scene_->mNumAnimations; ++a) {
+    addClip(a);
+    report("building", 0.5f + 0.5f * (a + 1) / scene_->mNumAnimations);
+  }
+  report("building", 1.f);
 
   if (Validation v = rig_.validate(); !v) fail(v.reason());
   return std::move(rig_);

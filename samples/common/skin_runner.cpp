@@ -84,7 +84,30 @@ Rig loadRig(const std::string& input) {
   if (input.compare(0, prefix.size(), prefix) == 0) {
     return makeBuiltinRig(input.substr(prefix.size()));
   }
-  return importRig(input);
+  // Progress on stderr: one update per stage and per tenth, so a large file
+  // shows it is alive without flooding a log.
+  ImportOptions options;
+  std::string last_stage;
+  int last_tenth = -1;
+  bool printed = false;
+  options.progress = [&](const char* stage, float fraction) {
+    const int tenth = static_cast<int>(fraction * 10.f);
+    if (stage == last_stage && tenth == last_tenth) return;
+    last_stage = stage;
+    last_tenth = tenth;
+    std::fprintf(stderr, "\rloading %s: %-10s %3d%%", input.c_str(), stage,
+                 tenth * 10);
+    printed = true;
+  };
+  Rig rig;
+  try {
+    rig = importRig(input, options);
+  } catch (...) {
+    if (printed) std::fprintf(stderr, "\n");
+    throw;
+  }
+  if (printed) std::fprintf(stderr, "\n");
+  return rig;
 }
 
 AnimationClip selectClip(const Rig& rig, const std::string& spec,

@@ -13,6 +13,7 @@
 //   non-uniform scale or shear in a bind transform is an error.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "isk/rig.hpp"
@@ -22,6 +23,10 @@ namespace isk {
 struct ImportOptions {
   // Weight sums further than this from 1 are reported when normalized.
   float weight_sum_tolerance = 1e-3f;
+  // Called from the loading thread as work goes on: `stage` is "reading"
+  // (Assimp's parser), "processing" (triangulation, joining) or "building"
+  // (skin, skeleton, clips); `fraction` grows from 0 to 1 within a stage.
+  std::function<void(const char* stage, float fraction)> progress;
 };
 
 // Loads `path`. Throws isk::Error: kIo when the file cannot be read,
