@@ -16,12 +16,11 @@
 
 #include "data_folder.hpp"
 #include "isk/cl/skinning.hpp"
+#include "isk/cpu_skinning.hpp"
 #include "isk/import.hpp"
 #include "isk/pose.hpp"
 #include "isk/procedural.hpp"
-#include "isk/skinning.hpp"
 #include "isk/subdivide.hpp"
-#include "isk/vertex_normals.hpp"
 
 namespace {
 
@@ -88,7 +87,7 @@ void skinOpenCl(benchmark::State& state, const Model& model,
     skinning.readPositions(positions);
     skinning.readNormals(normals);
     benchmark::DoNotOptimize(positions.data());
-    const isk::ClStageTimes& t = skinning.lastTimes();
+    const isk::SkinningStageTimes& t = skinning.lastTimes();
     upload += t.upload_ms;
     skin += t.skinning_ms;
     normal += t.normals_ms;
@@ -108,30 +107,11 @@ void skinOpenCl(benchmark::State& state, const Model& model,
 void skinReference(benchmark::State& state, const Model& model,
                    isk::SkinningMethod method) {
   const isk::Rig& rig = rigOf(model);
-  const isk::VertexTriangleAdjacency adjacency =
-      isk::VertexTriangleAdjacency::build(rig.mesh.triangles,
-                                          rig.mesh.vertexCount());
-  isk::Matrix3Xf positions, skinned_normals, normals;
+  isk::CpuSkinning skinning(rig.mesh, rig.weights, rig.skeleton.jointCount());
   int64_t frame = 0;
   for (auto _ : state) {
-    const isk::TransformList pose = poseAt(rig, frame++);
-    isk::SkinningJob job;
-    job.method = method;
-    job.rest_positions = &rig.mesh.positions;
-    job.rest_normals = &rig.mesh.normals;
-    job.weights = &rig.weights;
-    job.skinning = &pose;
-    job.out_positions = &positions;
-    job.out_normals = &skinned_normals;
-    job.run();
-    isk::VertexNormalsJob normals_job;
-    normals_job.positions = &positions;
-    normals_job.triangles = &rig.mesh.triangles;
-    normals_job.adjacency = &adjacency;
-    normals_job.fallback_normals = &skinned_normals;
-    normals_job.out_normals = &normals;
-    normals_job.run();
-    benchmark::DoNotOptimize(normals.data());
+    skinning.run(method, poseAt(rig, frame++), true);
+    benchmark::DoNotOptimize(skinning.normals().data());
   }
   state.counters["vertices"] = rig.mesh.vertexCount();
   state.counters["fps"] = benchmark::Counter(static_cast<double>(frame),

@@ -178,7 +178,7 @@ TEST(Runtime, StageTimesComeFromProfilingEvents) {
                true);
   Matrix3Xf out;
   skinning.readPositions(out);
-  const ClStageTimes& t = skinning.lastTimes();
+  const SkinningStageTimes& t = skinning.lastTimes();
   EXPECT_GT(t.skinning_ms, 0.0);
   EXPECT_GT(t.normals_ms, 0.0);
   EXPECT_GE(t.readback_ms, 0.0);

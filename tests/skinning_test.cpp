@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "isk/cpu_skinning.hpp"
 #include "isk/dual_quaternion.hpp"
 #include "isk/error.hpp"
 #include "isk/mesh_metrics.hpp"
@@ -39,30 +40,9 @@ struct Frame {
 
 Frame skinOnCpu(const Rig& rig, SkinningMethod method,
                 const TransformList& pose, bool recompute_normals) {
-  Frame frame;
-  Matrix3Xf skinned_normals;
-  SkinningJob job;
-  job.method = method;
-  job.rest_positions = &rig.mesh.positions;
-  job.rest_normals = &rig.mesh.normals;
-  job.weights = &rig.weights;
-  job.skinning = &pose;
-  job.out_positions = &frame.positions;
-  job.out_normals = recompute_normals ? &skinned_normals : &frame.normals;
-  EXPECT_TRUE(job.validate()) << job.validate().reason();
-  job.run();
-  if (recompute_normals) {
-    const VertexTriangleAdjacency adjacency = VertexTriangleAdjacency::build(
-        rig.mesh.triangles, rig.mesh.vertexCount());
-    VertexNormalsJob normals;
-    normals.positions = &frame.positions;
-    normals.triangles = &rig.mesh.triangles;
-    normals.adjacency = &adjacency;
-    normals.fallback_normals = &skinned_normals;
-    normals.out_normals = &frame.normals;
-    normals.run();
-  }
-  return frame;
+  CpuSkinning reference(rig.mesh, rig.weights, rig.skeleton.jointCount());
+  reference.run(method, pose, recompute_normals);
+  return {reference.positions(), reference.normals()};
 }
 
 std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
@@ -325,7 +305,9 @@ TEST(Skinning, ValidateReportsBadInputs) {
   nan_pose[0].matrix()(0, 0) = std::nanf("");
   job.skinning = &nan_pose;
   EXPECT_FALSE(job.validate());
-  // The device path rejects a pose of the wrong size with a reason too.
+  // Both backends reject a pose of the wrong size with a reason too.
+  CpuSkinning reference(rig.mesh, rig.weights, rig.skeleton.jointCount());
+  EXPECT_THROW(reference.run(SkinningMethod::kLinearBlend, short_pose), Error);
   ClSkinning device(test::sharedContext(), rig.mesh, rig.weights,
                     rig.skeleton.jointCount());
   try {

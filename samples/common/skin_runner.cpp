@@ -238,63 +238,37 @@ void writeTextFileAtomically(const std::string& path, const std::string& text) {
   }
 }
 
-FrameSkinner::FrameSkinner(const Rig& rig, const std::string& device)
-    : rig_(rig) {
+FrameSkinner::FrameSkinner(const Rig& rig, const std::string& device) {
   if (device == "reference") {
-    adjacency_ = VertexTriangleAdjacency::build(rig.mesh.triangles,
-                                                rig.mesh.vertexCount());
+    reference_ = std::make_unique<CpuSkinning>(rig.mesh, rig.weights,
+                                               rig.skeleton.jointCount());
     return;
   }
   auto context = ClContext::create(device == "auto" ? "" : device);
-  skinning_ = std::make_unique<ClSkinning>(context, rig.mesh, rig.weights,
-                                           rig.skeleton.jointCount());
+  device_ = std::make_unique<ClSkinning>(context, rig.mesh, rig.weights,
+                                         rig.skeleton.jointCount());
 }
 
 const ClDeviceInfo* FrameSkinner::deviceInfo() const {
-  return skinning_ ? &skinning_->context().info() : nullptr;
+  return device_ ? &device_->context().info() : nullptr;
 }
 
 std::string FrameSkinner::describe() const {
-  return skinning_ ? skinning_->context().info().describe()
-                   : std::string("reference (CPU)");
+  return device_ ? device_->context().info().describe()
+                 : std::string("reference (CPU)");
 }
 
 void FrameSkinner::skin(SkinningMethod method, const TransformList& skinning,
                         Matrix3Xf& positions, Matrix3Xf& normals) {
-  times_ = StageTimes();
-  if (skinning_) {
-    skinning_->run(method, skinning, /*recompute_normals=*/true);
-    skinning_->readPositions(positions);
-    skinning_->readNormals(normals);
-    const ClStageTimes& t = skinning_->lastTimes();
-    times_.skinning_ms = t.skinning_ms;
-    times_.normals_ms = t.normals_ms;
-    times_.upload_ms = t.upload_ms;
-    times_.readback_ms = t.readback_ms;
-    return;
+  if (device_) {
+    device_->run(method, skinning, /*recompute_normals=*/true);
+    device_->readPositions(positions);
+    device_->readNormals(normals);
+  } else {
+    reference_->run(method, skinning, /*recompute_normals=*/true);
+    reference_->readPositions(positions);
+    reference_->readNormals(normals);
   }
-
-  SkinningJob job;
-  job.method = method;
-  job.rest_positions = &rig_.mesh.positions;
-  job.rest_normals = &rig_.mesh.normals;
-  job.weights = &rig_.weights;
-  job.skinning = &skinning;
-  job.out_positions = &positions;
-  job.out_normals = &skinned_normals_;
-  auto start = Clock::now();
-  job.run();
-  times_.skinning_ms = millisecondsSince(start);
-
-  VertexNormalsJob normals_job;
-  normals_job.positions = &positions;
-  normals_job.triangles = &rig_.mesh.triangles;
-  normals_job.adjacency = &adjacency_;
-  normals_job.fallback_normals = &skinned_normals_;
-  normals_job.out_normals = &normals;
-  start = Clock::now();
-  normals_job.run();
-  times_.normals_ms = millisecondsSince(start);
 }
 
 TimeSummary summarize(std::vector<double> values) {
@@ -347,7 +321,7 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
     const auto start = Clock::now();
     skinner.skin(options.method, skinning, positions, normals);
     result.frame_ms.push_back(millisecondsSince(start));
-    const StageTimes& stage = skinner.lastTimes();
+    const SkinningStageTimes& stage = skinner.lastTimes();
     skinning_ms.push_back(stage.skinning_ms);
     normals_ms.push_back(stage.normals_ms);
     upload_ms.push_back(stage.upload_ms);

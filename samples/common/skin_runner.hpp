@@ -12,6 +12,7 @@
 #include "isk/animation.hpp"
 #include "isk/cl/runtime.hpp"
 #include "isk/cl/skinning.hpp"
+#include "isk/cpu_skinning.hpp"
 #include "isk/export.hpp"
 #include "isk/rig.hpp"
 #include "isk/skinning.hpp"
@@ -52,15 +53,8 @@ void prepareOutputFolder(const std::string& dir, bool overwrite,
 // Writes `text` to `path` through a temporary file and a rename.
 void writeTextFileAtomically(const std::string& path, const std::string& text);
 
-struct StageTimes {
-  double skinning_ms = 0;
-  double normals_ms = 0;
-  double upload_ms = 0;
-  double readback_ms = 0;
-};
-
 // Skins one rig on one device: an OpenCL device through isk::ClSkinning, or
-// the CPU reference jobs (SkinningJob + VertexNormalsJob).
+// the CPU reference through its twin isk::CpuSkinning.
 class FrameSkinner {
  public:
   // `device`: "auto" or "" (default OpenCL device), "reference" (CPU), or an
@@ -68,7 +62,7 @@ class FrameSkinner {
   // static data; throws isk::Error.
   FrameSkinner(const Rig& rig, const std::string& device);
 
-  bool isReference() const { return !skinning_; }
+  bool isReference() const { return !device_; }
   // Null for the reference.
   const ClDeviceInfo* deviceInfo() const;
   // "reference (CPU)" or "platform / device".
@@ -78,14 +72,13 @@ class FrameSkinner {
   // from the result; fills lastTimes().
   void skin(SkinningMethod method, const TransformList& skinning,
             Matrix3Xf& positions, Matrix3Xf& normals);
-  const StageTimes& lastTimes() const { return times_; }
+  const SkinningStageTimes& lastTimes() const {
+    return device_ ? device_->lastTimes() : reference_->lastTimes();
+  }
 
  private:
-  const Rig& rig_;
-  std::unique_ptr<ClSkinning> skinning_;
-  VertexTriangleAdjacency adjacency_;
-  Matrix3Xf skinned_normals_;
-  StageTimes times_;
+  std::unique_ptr<ClSkinning> device_;      // set for OpenCL
+  std::unique_ptr<CpuSkinning> reference_;  // set for the reference
 };
 
 struct RunOptions {
@@ -110,7 +103,7 @@ struct RunResult {
   int frames = 0;
   std::vector<double> frame_ms;  // skinning + normals + readback, per frame
   TimeSummary frame;
-  StageTimes stage_median;
+  SkinningStageTimes stage_median;
   double rest_volume = 0;
   // Unset when the rest volume is about 0 (an open or flat mesh), where
   // a ratio means nothing.

@@ -21,6 +21,15 @@ namespace isk {
 
 enum class SkinningMethod { kLinearBlend, kDualQuaternion };
 
+// Milliseconds spent per stage of one frame (ClSkinning: from OpenCL
+// profiling events; CpuSkinning: host wall time).
+struct SkinningStageTimes {
+  double upload_ms = 0;    // joint transforms to the device (0 on the CPU)
+  double skinning_ms = 0;  // skinning
+  double normals_ms = 0;   // normals (0 when not recomputed)
+  double readback_ms = 0;  // last readPositions + readNormals
+};
+
 const char* skinningMethodName(SkinningMethod method);  // "lbs" / "dqs"
 
 // Packs skinning transforms for the kernels: LBS takes the top 3 rows of each

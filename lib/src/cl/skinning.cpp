@@ -96,7 +96,7 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
   const bool profiling = context_->profilingEnabled();
   const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
   const cl_uint n = static_cast<cl_uint>(vertex_count_);
-  times_ = ClStageTimes();
+  times_ = SkinningStageTimes();
   try {
     auto start = std::chrono::steady_clock::now();
     cl::Event upload, skin, normals;
@@ -156,32 +156,26 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
 }
 
 void ClSkinning::readPositions(Matrix3Xf& out) {
-  out.resize(vertex_count_, 3);
-  try {
-    cl::Event read;
-    const auto start = std::chrono::steady_clock::now();
-    context_->queue().enqueueReadBuffer(out_positions_, CL_TRUE, 0,
-                                        out.size() * sizeof(float), out.data(),
-                                        nullptr, &read);
-    times_.readback_ms =
-        context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
-  } catch (const cl::Error& e) {
-    throwClError(e, "ClSkinning::readPositions");
-  }
+  times_.readback_ms += readBuffer(out_positions_, out, "readPositions");
 }
 
 void ClSkinning::readNormals(Matrix3Xf& out) {
+  times_.readback_ms += readBuffer(out_normals_, out, "readNormals");
+}
+
+double ClSkinning::readBuffer(const cl::Buffer& buffer, Matrix3Xf& out,
+                              const char* what) {
   out.resize(vertex_count_, 3);
   try {
     cl::Event read;
     const auto start = std::chrono::steady_clock::now();
-    context_->queue().enqueueReadBuffer(out_normals_, CL_TRUE, 0,
+    context_->queue().enqueueReadBuffer(buffer, CL_TRUE, 0,
                                         out.size() * sizeof(float), out.data(),
                                         nullptr, &read);
-    times_.readback_ms +=
-        context_->profilingEnabled() ? eventMilliseconds(read) : since(start);
+    return context_->profilingEnabled() ? eventMilliseconds(read)
+                                        : since(start);
   } catch (const cl::Error& e) {
-    throwClError(e, "ClSkinning::readNormals");
+    throwClError(e, std::string("ClSkinning::") + what);
   }
 }
 

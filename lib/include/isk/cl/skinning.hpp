@@ -5,7 +5,8 @@
 // the skinning kernel (LBS or DQS) and the normals kernel, and leaves the
 // results in device buffers (read them back, or hand the buffers to your
 // renderer). Results match the CPU reference (isk/skinning.hpp and
-// isk/vertex_normals.hpp) up to float rounding.
+// isk/vertex_normals.hpp, together in isk/cpu_skinning.hpp) up to float
+// rounding.
 #pragma once
 
 #include <memory>
@@ -17,13 +18,6 @@
 #include "isk/types.hpp"
 
 namespace isk {
-
-struct ClStageTimes {
-  double upload_ms = 0;    // joint transforms to the device
-  double skinning_ms = 0;  // skinning kernel
-  double normals_ms = 0;   // normals kernel (0 when not recomputed)
-  double readback_ms = 0;  // last readPositions + readNormals
-};
 
 class ClSkinning {
  public:
@@ -49,11 +43,15 @@ class ClSkinning {
 
   // Stage times of the last run and reads: from profiling events when the
   // queue has profiling, else host wall time around finished commands.
-  const ClStageTimes& lastTimes() const { return times_; }
+  const SkinningStageTimes& lastTimes() const { return times_; }
   ClContext& context() { return *context_; }
+  const ClContext& context() const { return *context_; }
   int vertexCount() const { return vertex_count_; }
 
  private:
+  // Blocking read of a #V by 3 result; returns its milliseconds.
+  double readBuffer(const cl::Buffer& buffer, Matrix3Xf& out, const char* what);
+
   std::shared_ptr<ClContext> context_;
   int vertex_count_ = 0;
   int joint_count_ = 0;
@@ -63,7 +61,7 @@ class ClSkinning {
   cl::Buffer triangles_, adjacency_offsets_, adjacency_triangles_;
   cl::Buffer joint_transforms_;
   cl::Buffer skinned_normals_, out_positions_, out_normals_;
-  ClStageTimes times_;
+  SkinningStageTimes times_;
 };
 
 }  // namespace isk
