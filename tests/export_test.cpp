@@ -14,30 +14,14 @@
 
 #include "isk/error.hpp"
 #include "isk/mesh_metrics.hpp"
+#include "test_support.hpp"
 
 namespace isk {
 namespace {
 
+using test::ScopedTempDir;
+
 namespace fs = std::filesystem;
-
-// A folder of its own per test, removed afterwards.
-class ScopedTempDir {
- public:
-  ScopedTempDir() {
-    std::random_device random;
-    path_ = fs::temp_directory_path() /
-            ("isk_export_test_" + std::to_string(random()));
-    fs::create_directories(path_);
-  }
-  ~ScopedTempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 struct ParsedMesh {
   Matrix3Xf positions;

@@ -27,31 +27,11 @@
 namespace isk {
 namespace {
 
+using test::ScopedTempDir;
+
 namespace fs = std::filesystem;
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-// A folder of its own per test, removed afterwards.
-class ScopedTempDir {
- public:
-  ScopedTempDir() {
-    std::random_device random;
-    path_ = fs::temp_directory_path() /
-            ("isk_import_test_" + std::to_string(random()) + "_" +
-             std::to_string(random()));
-    fs::create_directories(path_);
-  }
-  ~ScopedTempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const {
-    return (path_ / name).string();
-  }
-
- private:
-  fs::path path_;
-};
 
 std::string writeFile(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary);

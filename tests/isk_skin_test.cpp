@@ -24,28 +24,9 @@
 namespace isk {
 namespace {
 
+using test::ScopedTempDir;
+
 namespace fs = std::filesystem;
-
-class ScopedTempDir {
- public:
-  ScopedTempDir() {
-    std::random_device random;
-    path_ = fs::temp_directory_path() /
-            ("isk_skin_test_" + std::to_string(random()));
-    fs::create_directories(path_);
-  }
-  ~ScopedTempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-  std::string operator/(const std::string& name) const {
-    return (path_ / name).string();
-  }
-
- private:
-  fs::path path_;
-};
 
 std::string shellQuote(const std::string& arg) {
   std::string quoted = "'";

@@ -2,6 +2,7 @@
 
 #include <map>
 #include <mutex>
+#include <random>
 
 #include "data_folder.hpp"
 #include "isk/import.hpp"
@@ -55,6 +56,19 @@ RowMismatch largestRowDistance(const Matrix3Xf& a, const Matrix3Xf& b) {
     }
   }
   return result;
+}
+
+ScopedTempDir::ScopedTempDir() {
+  std::random_device random;
+  path_ =
+      std::filesystem::temp_directory_path() /
+      ("isk_test_" + std::to_string(random()) + "_" + std::to_string(random()));
+  std::filesystem::create_directories(path_);
+}
+
+ScopedTempDir::~ScopedTempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
 }
 
 }  // namespace isk::test

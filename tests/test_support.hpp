@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -35,5 +36,25 @@ struct RowMismatch {
   int row = -1;
 };
 RowMismatch largestRowDistance(const Matrix3Xf& a, const Matrix3Xf& b);
+
+// A fresh folder under the system's temporary folder, removed with its
+// content when the object dies.
+class ScopedTempDir {
+ public:
+  ScopedTempDir();
+  ~ScopedTempDir();
+  ScopedTempDir(const ScopedTempDir&) = delete;
+  ScopedTempDir& operator=(const ScopedTempDir&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  // Path of `name` inside the folder.
+  std::string file(const std::string& name) const {
+    return (path_ / name).string();
+  }
+  std::string operator/(const std::string& name) const { return file(name); }
+
+ private:
+  std::filesystem::path path_;
+};
 
 }  // namespace isk::test
