@@ -91,7 +91,8 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
                       std::to_string(j) + " is not finite");
     }
   }
-  const std::vector<float> packed = packJointTransforms(method, skinning);
+  // Kept in a member: the non-blocking write reads it until the queue is done.
+  staging_ = packJointTransforms(method, skinning);
   const cl::CommandQueue& queue = context_->queue();
   const bool profiling = context_->profilingEnabled();
   const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
@@ -100,12 +101,12 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
   try {
     auto start = std::chrono::steady_clock::now();
     cl::Event upload, skin, normals;
-    queue.enqueueWriteBuffer(joint_transforms_, CL_FALSE, 0,
-                             packed.size() * sizeof(float), packed.data(),
-                             nullptr, &upload);
-    // The host array dies with this call: the copy must be done before return.
-    upload.wait();
-    times_.upload_ms = profiling ? eventMilliseconds(upload) : since(start);
+    // Without profiling, each stage is waited for and timed on the host;
+    // with it, the queue runs unbroken and the events give the times.
+    queue.enqueueWriteBuffer(joint_transforms_, profiling ? CL_FALSE : CL_TRUE,
+                             0, staging_.size() * sizeof(float),
+                             staging_.data(), nullptr, &upload);
+    if (!profiling) times_.upload_ms = since(start);
 
     cl::Kernel& kernel =
         method == SkinningMethod::kLinearBlend ? lbs_kernel_ : dqs_kernel_;
@@ -145,6 +146,7 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
     }
     if (profiling) {
       (recompute_normals ? normals : skin).wait();
+      times_.upload_ms = eventMilliseconds(upload);
       times_.skinning_ms = eventMilliseconds(skin);
       times_.normals_ms = recompute_normals ? eventMilliseconds(normals) : 0.0;
     }

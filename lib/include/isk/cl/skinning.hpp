@@ -10,6 +10,7 @@
 #pragma once
 
 #include <memory>
+#include <vector>
 
 #include "isk/cl/runtime.hpp"
 #include "isk/mesh.hpp"
@@ -60,6 +61,7 @@ class ClSkinning {
   cl::Buffer influence_offsets_, influence_joints_, influence_weights_;
   cl::Buffer triangles_, adjacency_offsets_, adjacency_triangles_;
   cl::Buffer joint_transforms_;
+  std::vector<float> staging_;  // packed joint transforms of the last run
   cl::Buffer skinned_normals_, out_positions_, out_normals_;
   SkinningStageTimes times_;
 };
