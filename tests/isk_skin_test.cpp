@@ -45,8 +45,10 @@ struct RunOutput {
   std::string output;  // stdout and stderr together
 };
 
-RunOutput runIskSkin(const std::vector<std::string>& args) {
-  std::string command = shellQuote(ISK_SKIN_EXE);
+// `environment` is prepended to the command ("NAME=value ...").
+RunOutput runIskSkin(const std::vector<std::string>& args,
+                     const std::string& environment = "") {
+  std::string command = environment + shellQuote(ISK_SKIN_EXE);
   for (const std::string& arg : args) command += " " + shellQuote(arg);
   command += " 2>&1";
   RunOutput result;
@@ -358,6 +360,25 @@ TEST(IskSkinTest, RiggedSimpleAssetKeepsItsInputUntouched) {
 
   EXPECT_EQ(readFile(input), original);
   EXPECT_EQ(fs::last_write_time(input), original_time);
+}
+
+// With no OpenCL platform at all (the ICD loader pointed at an empty vendor
+// folder), the default device is a clear error and the CPU reference still
+// works.
+TEST(IskSkin, NoOpenClPlatformIsAClearErrorAndReferenceStillWorks) {
+  ScopedTempDir empty_vendors;
+  const std::string environment =
+      "OCL_ICD_VENDORS=" + shellQuote(empty_vendors.path().string()) + " ";
+  const std::vector<std::string> args = {"builtin:finger", "--frames", "2"};
+  const RunOutput failed = runIskSkin(args, environment);
+  EXPECT_EQ(failed.exit_code, 1) << describe(args, failed);
+  EXPECT_NE(failed.output.find("no OpenCL platform or device was found"),
+            std::string::npos)
+      << describe(args, failed);
+  std::vector<std::string> reference = args;
+  reference.insert(reference.end(), {"--device", "reference"});
+  const RunOutput worked = runIskSkin(reference, environment);
+  EXPECT_EQ(worked.exit_code, 0) << describe(reference, worked);
 }
 
 }  // namespace
