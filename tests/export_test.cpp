@@ -3,11 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <string>
@@ -215,6 +217,7 @@ std::vector<std::string> folderEntries(const fs::path& dir) {
   for (const auto& entry : fs::directory_iterator(dir)) {
     names.push_back(entry.path().filename().string());
   }
+  std::sort(names.begin(), names.end());  // listing order is unspecified
   return names;
 }
 
@@ -255,6 +258,22 @@ TEST(ExportTest, FailedRenameThrowsIoAndLeavesNoTemporaryFile) {
     }
     EXPECT_EQ(folderEntries(dir.path()), std::vector<std::string>{"taken.ply"});
   }
+}
+
+TEST(ExportTest, TextFilesAreWrittenWholeOrNotAtAll) {
+  ScopedTempDir dir;
+  const std::string path = dir.file("report.json");
+  writeTextFile(path, "{\"a\": 1}\n");
+  std::ifstream in(path);
+  std::string text((std::istreambuf_iterator<char>(in)),
+                   std::istreambuf_iterator<char>());
+  EXPECT_EQ(text, "{\"a\": 1}\n");
+  EXPECT_EQ(folderEntries(dir.path()), std::vector<std::string>{"report.json"});
+  // A folder in the way: kIo naming the path, and no temporary left behind.
+  fs::create_directories(dir.path() / "taken.json" / "inside");
+  EXPECT_THROW(writeTextFile(dir.file("taken.json"), "x"), Error);
+  EXPECT_EQ(folderEntries(dir.path()),
+            (std::vector<std::string>{"report.json", "taken.json"}));
 }
 
 TEST(ExportTest, RejectsMismatchedShapes) {

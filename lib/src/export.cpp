@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <system_error>
 
@@ -183,37 +184,27 @@ void checkInputs(const std::string& path, const Matrix3Xf& positions,
   }
 }
 
-}  // namespace
-
-void writeMesh(const std::string& path, MeshFormat format,
-               const Matrix3Xf& positions, const Matrix3Xf* normals,
-               const TriangleMatrix& triangles) {
-  checkInputs(path, positions, normals, triangles);
-
-  // A temporary name in the same folder, so the final rename is atomic and a
-  // failure never leaves a truncated file under `path`.
+// Runs `write` into a temporary file in the target's folder and renames it
+// to `path` when complete, so the rename is atomic and a failure never leaves
+// a truncated file under `path`.
+void writeThroughTemporary(const std::string& path,
+                           const std::function<void(FileSink&)>& write) {
   const std::string temp_path = path + ".tmp-" + std::to_string(processId());
   std::FILE* file = std::fopen(temp_path.c_str(), "wb");
   if (!file) {
     throw Error(ErrorCode::kIo, path + ": cannot open " + temp_path +
                                     " for writing: " + std::strerror(errno));
   }
-
   std::string reason;
   {
     FileSink sink(file);
-    if (format == MeshFormat::kObj) {
-      writeObj(sink, positions, normals, triangles);
-    } else {
-      writePly(sink, positions, normals, triangles);
-    }
+    write(sink);
     sink.flush();
     reason = sink.error();
   }
   if (std::fclose(file) != 0 && reason.empty()) {
     reason = std::string("close failed: ") + std::strerror(errno);
   }
-
   std::error_code ec;
   if (reason.empty()) {
     std::filesystem::rename(temp_path, path, ec);
@@ -223,6 +214,25 @@ void writeMesh(const std::string& path, MeshFormat format,
     std::filesystem::remove(temp_path, ec);
     throw Error(ErrorCode::kIo, path + ": " + reason);
   }
+}
+
+}  // namespace
+
+void writeMesh(const std::string& path, MeshFormat format,
+               const Matrix3Xf& positions, const Matrix3Xf* normals,
+               const TriangleMatrix& triangles) {
+  checkInputs(path, positions, normals, triangles);
+  writeThroughTemporary(path, [&](FileSink& sink) {
+    if (format == MeshFormat::kObj) {
+      writeObj(sink, positions, normals, triangles);
+    } else {
+      writePly(sink, positions, normals, triangles);
+    }
+  });
+}
+
+void writeTextFile(const std::string& path, const std::string& text) {
+  writeThroughTemporary(path, [&](FileSink& sink) { sink.append(text); });
 }
 
 }  // namespace isk

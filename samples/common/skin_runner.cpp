@@ -10,12 +10,6 @@
 #include <regex>
 #include <sstream>
 
-#ifdef _WIN32
-#include <process.h>
-#else
-#include <unistd.h>
-#endif
-
 #include "isk/error.hpp"
 #include "isk/import.hpp"
 #include "isk/mesh_metrics.hpp"
@@ -35,14 +29,6 @@ using Clock = std::chrono::steady_clock;
 double millisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start)
       .count();
-}
-
-int processId() {
-#ifdef _WIN32
-  return _getpid();
-#else
-  return static_cast<int>(getpid());
-#endif
 }
 
 bool parseIndex(const std::string& text, int* index) {
@@ -213,28 +199,6 @@ void prepareOutputFolder(const std::string& dir, bool overwrite,
       throw Error(ErrorCode::kIo,
                   file.string() + ": cannot remove: " + ec.message());
     }
-  }
-}
-
-void writeTextFileAtomically(const std::string& path, const std::string& text) {
-  const std::string temp = path + ".tmp-" + std::to_string(processId());
-  std::error_code ec;
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error(ErrorCode::kIo, path + ": cannot open " + temp);
-    out << text;
-    out.close();
-    if (!out) {
-      fs::remove(temp, ec);
-      throw Error(ErrorCode::kIo, path + ": write failed");
-    }
-  }
-  fs::rename(temp, path, ec);
-  if (ec) {
-    const std::string reason = ec.message();
-    fs::remove(temp, ec);
-    throw Error(ErrorCode::kIo,
-                path + ": cannot rename " + temp + ": " + reason);
   }
 }
 

@@ -50,9 +50,6 @@ std::string frameFileName(int frame, MeshFormat format);
 void prepareOutputFolder(const std::string& dir, bool overwrite,
                          const std::string& protected_path);
 
-// Writes `text` to `path` through a temporary file and a rename.
-void writeTextFileAtomically(const std::string& path, const std::string& text);
-
 // Skins one rig on one device: an OpenCL device through isk::ClSkinning, or
 // the CPU reference through its twin isk::CpuSkinning.
 class FrameSkinner {

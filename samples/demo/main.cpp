@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "isk/error.hpp"
+#include "isk/export.hpp"
 #include "isk/mesh_metrics.hpp"
 #include "skin_runner.hpp"
 
@@ -147,9 +148,9 @@ int run(const std::string& out_dir, int frames, const std::string& device) {
   std::string table = formatTable(rows);
   std::cout << table;
   const std::string summary_path = (fs::path(out_dir) / "summary.md").string();
-  isk::samples::writeTextFileAtomically(
-      summary_path, "# isk-demo summary\n\nFrames: " + out_dir +
-                        "/<rig>/<method>/frame_XXXX.obj\n\n" + table);
+  isk::writeTextFile(summary_path, "# isk-demo summary\n\nFrames: " + out_dir +
+                                       "/<rig>/<method>/frame_XXXX.obj\n\n" +
+                                       table);
   std::cerr << "isk-demo: wrote " << summary_path << "\n";
   if (!all_agree) {
     std::cerr << "isk-demo: OpenCL and the CPU reference differ by more than "

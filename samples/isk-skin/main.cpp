@@ -9,6 +9,7 @@
 #include <string>
 
 #include "isk/error.hpp"
+#include "isk/export.hpp"
 #include "isk/procedural.hpp"
 #include "skin_runner.hpp"
 
@@ -154,8 +155,7 @@ int run(const Options& options) {
     if (!parent.empty()) fs::create_directories(parent);
     const nlohmann::json report =
         makeReport(options, rig, clip, skinner, load_ms, setup_ms, result);
-    isk::samples::writeTextFileAtomically(options.report,
-                                          report.dump(2) + "\n");
+    isk::writeTextFile(options.report, report.dump(2) + "\n");
   }
 
   std::cerr << std::setprecision(4) << "isk-skin: " << result.frames << " frame"

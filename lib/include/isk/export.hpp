@@ -21,4 +21,8 @@ void writeMesh(const std::string& path, MeshFormat format,
                const Matrix3Xf& positions, const Matrix3Xf* normals,
                const TriangleMatrix& triangles);
 
+// Writes `text` to `path` the same way (temporary file, then rename).
+// Throws isk::Error(kIo) naming the path.
+void writeTextFile(const std::string& path, const std::string& text);
+
 }  // namespace isk
