@@ -141,6 +141,16 @@ nlohmann::json readReport(const std::string& path) {
   return nlohmann::json::parse(in);
 }
 
+// `folder` holds exactly frame_0000.obj .. frame_<count-1>.obj, each with
+// `vertices` vertices.
+void expectObjFrames(const fs::path& folder, int count, int vertices) {
+  EXPECT_EQ(frameFiles(folder), expectedFrameNames(count, "obj"));
+  for (const std::string& name : frameFiles(folder)) {
+    EXPECT_EQ(readObjPositions((folder / name).string()).rows(), vertices)
+        << name;
+  }
+}
+
 TEST(IskSkinTest, BuiltinCylinderWritesFramesAndReport) {
   ScopedTempDir dir;
   const Rig rig = makeBuiltinRig("cylinder");
@@ -150,12 +160,7 @@ TEST(IskSkinTest, BuiltinCylinderWritesFramesAndReport) {
   const RunOutput run = runIskSkin(args);
   ASSERT_EQ(run.exit_code, 0) << describe(args, run);
 
-  EXPECT_EQ(frameFiles(dir.path() / "frames"), expectedFrameNames(5, "obj"));
-  for (const std::string& name : frameFiles(dir.path() / "frames")) {
-    EXPECT_EQ(readObjPositions(dir / ("frames/" + name)).rows(),
-              rig.mesh.vertexCount())
-        << name;
-  }
+  expectObjFrames(dir.path() / "frames", 5, rig.mesh.vertexCount());
   // Frame 0 is the clip's first key: the rest pose for the bend clip.
   const Matrix3Xf first = readObjPositions(dir / "frames/frame_0000.obj");
   EXPECT_LT(test::largestRowDistance(first, rig.mesh.positions).distance,
@@ -338,12 +343,7 @@ TEST(IskSkinTest, RiggedSimpleAssetKeepsItsInputUntouched) {
       dir / "report.json", input};
   const RunOutput run = runIskSkin(args);
   ASSERT_EQ(run.exit_code, 0) << describe(args, run);
-  EXPECT_EQ(frameFiles(dir.path() / "frames"), expectedFrameNames(5, "obj"));
-  for (const std::string& name : frameFiles(dir.path() / "frames")) {
-    EXPECT_EQ(readObjPositions(dir / ("frames/" + name)).rows(),
-              rig.mesh.vertexCount())
-        << name;
-  }
+  expectObjFrames(dir.path() / "frames", 5, rig.mesh.vertexCount());
   const nlohmann::json report = readReport(dir / "report.json");
   expectReportKeys(report);
   EXPECT_EQ(report["vertices"], rig.mesh.vertexCount());
