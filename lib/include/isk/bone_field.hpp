@@ -1,0 +1,64 @@
+// One bone's compactly supported field (Vaillant et al. 2013, section 4.1),
+// analytic form:
+//
+//   f_i(x) = t_r(max(d_i(x), rho(x) - r))
+//
+// d_i is the HRBF fitted to the bone's samples; r is the distance from the
+// bone segment to the farthest sample used in the fit, so f_i = 1 is reached
+// only near the skeleton; rho is the distance from x to the bone segment.
+//
+// The max with rho - r is our guard, not the paper's: the cubic HRBF keeps
+// growing away from its samples and on an open or flat part it turns
+// negative again far away, so t_r(d_i) alone is not compactly supported
+// (it reaches 1 on whole half-spaces). Near a closed part the guard changes
+// nothing (there d_i < rho - r would mean a point deeper inside than its
+// distance to the r-capsule, which only happens between sparse samples);
+// beyond 2r from the bone it makes f_i exactly 0. So the support lies in the
+// capsule of radius 2r around the bone, and `support_box`, that capsule's box
+// in the bone frame, loses nothing.
+//
+// The field lives in the bone's frame: origin at b0, x along the bone (for a
+// point bone, the model axes).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "isk/bone_partition.hpp"
+#include "isk/bone_samples.hpp"
+#include "isk/hrbf.hpp"
+
+namespace isk {
+
+struct BoneField {
+  int joint = -1;
+  Hrbf hrbf;           // fitted in model space (bind pose)
+  double radius = 0;   // r of t_r
+  BoneSegment segment;
+  Eigen::Isometry3d bone_to_model = Eigen::Isometry3d::Identity();
+  Eigen::AlignedBox3d support_box;  // bone frame
+
+  // max(d_i, rho - r) and its gradient (model space) at model-space x.
+  void guardedDistance(const Eigen::Vector3d& x, double& distance,
+                       Eigen::Vector3d& gradient) const;
+  // The same from an HRBF value and gradient already evaluated at x.
+  void guard(const Eigen::Vector3d& x, double& distance,
+             Eigen::Vector3d& gradient) const;
+
+  // Analytic f and grad f at a model-space point at the bind pose; 0 and a
+  // zero gradient outside the support box.
+  double value(const Eigen::Vector3d& x) const;
+  void evaluate(const Eigen::Vector3d& x, double& value,
+                Eigen::Vector3d& gradient) const;
+};
+
+// Fits the field of samples.joint. Throws isk::Error(kInvalidArgument) when
+// fewer than 4 samples remain ("joint 'NAME': 3 samples, at least 4 are
+// needed"); warnings name the joint.
+BoneField fitBoneField(const Skeleton& skeleton, const BonePartition& partition,
+                       const BoneSamples& samples,
+                       std::vector<std::string>* warnings = nullptr);
+
+}  // namespace isk

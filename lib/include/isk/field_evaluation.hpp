@@ -1,0 +1,56 @@
+// Evaluation of the baked fields at posed points, CPU reference: each field's
+// value and gradient, and the composed field (Vaillant et al. 2013, section
+// 4.2, eq. 3).
+//
+// A field follows its joint rigidly: a posed point x is taken back to the
+// field's bone frame by (skinning[joint] * bone_to_model)^-1 and sampled
+// there (isk/field_grid.hpp); its gradient comes back to model space by the
+// transpose of that inverse's linear part (the rotation for a rigid pose).
+//
+// Composition: the union (max; the gradient is the largest field's). The
+// composition is an enum so that the operators of Appendix A plug in here.
+// The OpenCL evaluation (isk/cl/field_evaluation.hpp) does the same job.
+#pragma once
+
+#include <vector>
+
+#include "isk/field_grid.hpp"
+#include "isk/types.hpp"
+#include "isk/validation.hpp"
+
+namespace isk {
+
+// #rows by 4 float: value, gradient x y z.
+using Matrix4Xf = Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor>;
+
+enum class FieldComposition { kUnion };
+const char* fieldCompositionName(FieldComposition composition);  // "union"
+
+// Model-space -> bone-frame transform of every field for a pose (#fields),
+// from the skinning transforms (#joints).
+std::vector<Eigen::Affine3f> fieldTransforms(const FieldGridSet& fields,
+                                             const TransformList& skinning);
+
+struct FieldEvaluationJob {
+  const FieldGridSet* fields = nullptr;
+  const TransformList* skinning = nullptr;  // #joints
+  const Matrix3Xf* points = nullptr;        // #P by 3, model space
+  FieldComposition composition = FieldComposition::kUnion;
+  Matrix4Xf* out_composed = nullptr;   // resized to #P by 4
+  // Optional: resized to (#P * #fields) by 4, row p * #fields + i.
+  Matrix4Xf* out_per_field = nullptr;
+
+  Validation validate() const;
+  // Throws isk::Error(kInvalidArgument) when validate() fails.
+  void run() const;
+};
+
+// Every vertex's value of the composed field at the bind pose (the iso value
+// it is projected back to while animating), #V. `outside` (when given)
+// receives the vertices outside every field's support (value 0).
+std::vector<float> computeIsoValues(const FieldGridSet& fields,
+                                    const Matrix3Xf& rest_positions,
+                                    FieldComposition composition,
+                                    std::vector<int>* outside = nullptr);
+
+}  // namespace isk

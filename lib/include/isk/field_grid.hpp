@@ -1,0 +1,51 @@
+// Baked fields: each bone's f_i sampled on a regular grid of float4
+// (value, gradient x y z) over its support box, in the bone's frame
+// (Vaillant et al. 2013, section 6: 32^3 textures, trilinear interpolation).
+//
+// Node (i, j, k) sits at box.min + (i, j, k) * spacing, i fastest in memory
+// (the layout of a 3D image). Between nodes the four channels are
+// interpolated trilinearly; outside the box the value and the gradient are 0.
+// Gradients are analytic (chain rule through t_r), in the bone frame.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "isk/bone_field.hpp"
+#include "isk/types.hpp"
+
+namespace isk {
+
+struct FieldGrid {
+  int joint = -1;
+  int resolution = 32;                   // nodes per axis
+  Eigen::Isometry3f bone_to_model = Eigen::Isometry3f::Identity();
+  Eigen::Vector3f box_min = {0, 0, 0};   // bone frame
+  Eigen::Vector3f box_max = {0, 0, 0};
+  std::vector<float> nodes;              // resolution^3 * 4 floats
+
+  Eigen::Vector3f spacing() const {
+    return (box_max - box_min) / static_cast<float>(resolution - 1);
+  }
+  size_t bytes() const { return nodes.size() * sizeof(float); }
+
+  // Trilinear sample at a bone-frame point: value and bone-frame gradient
+  // (0 outside the box). The kernels' buffer path does exactly this.
+  Eigen::Vector4f sampleLocal(const Eigen::Vector3f& local) const;
+};
+
+// Bakes `field` at `resolution`^3 nodes (resolution >= 2).
+FieldGrid bakeField(const BoneField& field, int resolution = 32);
+
+// All baked fields of a character, ready to upload.
+struct FieldGridSet {
+  std::vector<FieldGrid> grids;    // one per field, in joint order
+  std::vector<int> field_of_joint; // #joints: index into grids, -1 if none
+  int resolution = 32;
+
+  int fieldCount() const { return static_cast<int>(grids.size()); }
+  size_t bytes() const;
+};
+
+}  // namespace isk

@@ -1,0 +1,64 @@
+// Offline builder of a character's implicit fields (Vaillant et al. 2013,
+// section 4.1): partition -> samples -> HRBF fits -> baked grids -> per-vertex
+// iso values. Editable stages are exposed (samples can be edited through
+// `edit_samples`); the result is immutable data ready to upload.
+//
+// Bad parts do not stop the build: a part whose samples fall under 4 after
+// culling is re-sampled without culling, then from its vertices; a part that
+// still has fewer than 4 points gets no field. Each case leaves a warning
+// naming the joint.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "isk/bone_field.hpp"
+#include "isk/bone_partition.hpp"
+#include "isk/bone_samples.hpp"
+#include "isk/field_evaluation.hpp"
+#include "isk/field_grid.hpp"
+#include "isk/rig.hpp"
+
+namespace isk {
+
+struct ImplicitFieldsOptions {
+  BoneSamplingOptions sampling;
+  int grid_resolution = 32;  // nodes per axis of each baked field
+  FieldComposition composition = FieldComposition::kUnion;
+  int threads = 0;  // fitting and baking threads; 0: all hardware threads
+  // Called after sampling, before fitting, with the samples of every bone
+  // that has a part (joint order): add or remove points here.
+  std::function<void(std::vector<BoneSamples>&)> edit_samples;
+  // Progress: `stage` is "partition", "sampling", "fitting", "baking" or
+  // "iso values"; `fraction` grows from 0 to 1 within a stage. Called from
+  // the calling thread.
+  std::function<void(const char* stage, float fraction)> progress;
+};
+
+struct ImplicitFieldsTimes {
+  double partition_ms = 0, sampling_ms = 0, fitting_ms = 0, baking_ms = 0,
+         iso_ms = 0;
+  double total() const {
+    return partition_ms + sampling_ms + fitting_ms + baking_ms + iso_ms;
+  }
+};
+
+struct ImplicitFields {
+  BonePartition partition;
+  std::vector<BoneSamples> samples;  // per field
+  std::vector<BoneField> fields;     // per field, joint order
+  FieldGridSet grids;                // per field
+  FieldComposition composition = FieldComposition::kUnion;
+  std::vector<float> iso_values;     // #V
+  std::vector<int> outside_vertices; // vertices outside every support
+  std::vector<std::string> warnings;
+  ImplicitFieldsTimes times;
+};
+
+// Validates `rig` and options (isk::Error kInvalidArgument, naming what is
+// wrong) and builds its fields.
+ImplicitFields buildImplicitFields(const Rig& rig,
+                                   const ImplicitFieldsOptions& options = {});
+
+}  // namespace isk

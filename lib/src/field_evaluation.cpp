@@ -1,0 +1,105 @@
+#include "isk/field_evaluation.hpp"
+
+#include <string>
+
+#include "isk/error.hpp"
+
+namespace isk {
+
+const char* fieldCompositionName(FieldComposition composition) {
+  switch (composition) {
+    case FieldComposition::kUnion:
+      return "union";
+  }
+  return "unknown";
+}
+
+std::vector<Eigen::Affine3f> fieldTransforms(const FieldGridSet& fields,
+                                             const TransformList& skinning) {
+  std::vector<Eigen::Affine3f> out;
+  out.reserve(fields.grids.size());
+  for (const FieldGrid& grid : fields.grids) {
+    const Eigen::Affine3f bone_to_posed =
+        skinning[grid.joint] * Eigen::Affine3f(grid.bone_to_model.matrix());
+    out.push_back(bone_to_posed.inverse(Eigen::Affine));
+  }
+  return out;
+}
+
+Validation FieldEvaluationJob::validate() const {
+  if (!fields) return Validation::fail("no field set");
+  if (!skinning) return Validation::fail("no skinning transforms");
+  if (!points) return Validation::fail("no points");
+  if (!out_composed) return Validation::fail("no output for the composed field");
+  for (size_t i = 0; i < fields->grids.size(); ++i) {
+    const FieldGrid& g = fields->grids[i];
+    if (g.joint < 0 || g.joint >= static_cast<int>(skinning->size()))
+      return Validation::fail("field " + std::to_string(i) + " belongs to joint " +
+                              std::to_string(g.joint) + " but only " +
+                              std::to_string(skinning->size()) +
+                              " skinning transforms were given");
+    const size_t n = static_cast<size_t>(g.resolution);
+    if (g.resolution < 2 || g.nodes.size() != 4 * n * n * n)
+      return Validation::fail("field " + std::to_string(i) +
+                              " has a malformed grid");
+  }
+  for (size_t j = 0; j < skinning->size(); ++j)
+    if (!(*skinning)[j].matrix().allFinite())
+      return Validation::fail("skinning transform " + std::to_string(j) +
+                              " is not finite");
+  return Validation::ok();
+}
+
+void FieldEvaluationJob::run() const {
+  validate().throwIfFailed("FieldEvaluationJob");
+  const std::vector<Eigen::Affine3f> to_bone = fieldTransforms(*fields, *skinning);
+  const int field_count = fields->fieldCount();
+  const int point_count = static_cast<int>(points->rows());
+  out_composed->resize(point_count, 4);
+  if (out_per_field)
+    out_per_field->resize(static_cast<Eigen::Index>(point_count) * field_count,
+                          4);
+  for (int p = 0; p < point_count; ++p) {
+    const Eigen::Vector3f x = points->row(p).transpose();
+    Eigen::Vector4f best = Eigen::Vector4f::Zero();
+    for (int i = 0; i < field_count; ++i) {
+      const Eigen::Vector4f local =
+          fields->grids[i].sampleLocal(to_bone[i] * x);
+      // Gradient back to model space: transpose of the inverse's linear part.
+      Eigen::Vector4f sample;
+      sample[0] = local[0];
+      sample.tail<3>() = to_bone[i].linear().transpose() * local.tail<3>();
+      if (out_per_field)
+        out_per_field->row(static_cast<Eigen::Index>(p) * field_count + i) =
+            sample.transpose();
+      if (sample[0] > best[0]) best = sample;  // union: max, first on ties
+    }
+    out_composed->row(p) = best.transpose();
+  }
+}
+
+std::vector<float> computeIsoValues(const FieldGridSet& fields,
+                                    const Matrix3Xf& rest_positions,
+                                    FieldComposition composition,
+                                    std::vector<int>* outside) {
+  int joint_count = 0;
+  for (const auto& g : fields.grids) joint_count = std::max(joint_count, g.joint + 1);
+  const TransformList identity(joint_count, Eigen::Affine3f::Identity());
+  Matrix4Xf composed;
+  FieldEvaluationJob job;
+  job.fields = &fields;
+  job.skinning = &identity;
+  job.points = &rest_positions;
+  job.composition = composition;
+  job.out_composed = &composed;
+  job.run();
+  std::vector<float> iso(composed.rows());
+  if (outside) outside->clear();
+  for (Eigen::Index v = 0; v < composed.rows(); ++v) {
+    iso[v] = composed(v, 0);
+    if (outside && !(iso[v] > 0)) outside->push_back(static_cast<int>(v));
+  }
+  return iso;
+}
+
+}  // namespace isk

@@ -1,0 +1,102 @@
+#include "isk/field_grid.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "isk/error.hpp"
+
+namespace isk {
+
+Eigen::Vector4f FieldGrid::sampleLocal(const Eigen::Vector3f& local) const {
+  const Eigen::Vector3f u =
+      (local - box_min).cwiseQuotient(spacing());
+  const float last = static_cast<float>(resolution - 1);
+  if (!(u.x() >= 0 && u.y() >= 0 && u.z() >= 0 && u.x() <= last &&
+        u.y() <= last && u.z() <= last))
+    return Eigen::Vector4f::Zero();
+  int i[3];
+  float t[3];
+  for (int a = 0; a < 3; ++a) {
+    i[a] = std::min(static_cast<int>(u[a]), resolution - 2);
+    t[a] = u[a] - static_cast<float>(i[a]);
+  }
+  const size_t n = static_cast<size_t>(resolution);
+  auto node = [&](int dx, int dy, int dz) {
+    const size_t index = (i[0] + dx) + n * ((i[1] + dy) + n * (i[2] + dz));
+    return Eigen::Map<const Eigen::Vector4f>(&nodes[4 * index]);
+  };
+  const Eigen::Vector4f x00 = node(0, 0, 0) + t[0] * (node(1, 0, 0) - node(0, 0, 0));
+  const Eigen::Vector4f x10 = node(0, 1, 0) + t[0] * (node(1, 1, 0) - node(0, 1, 0));
+  const Eigen::Vector4f x01 = node(0, 0, 1) + t[0] * (node(1, 0, 1) - node(0, 0, 1));
+  const Eigen::Vector4f x11 = node(0, 1, 1) + t[0] * (node(1, 1, 1) - node(0, 1, 1));
+  const Eigen::Vector4f y0 = x00 + t[1] * (x10 - x00);
+  const Eigen::Vector4f y1 = x01 + t[1] * (x11 - x01);
+  return y0 + t[2] * (y1 - y0);
+}
+
+FieldGrid bakeField(const BoneField& field, int resolution) {
+  if (resolution < 2)
+    throw Error(ErrorCode::kInvalidArgument,
+                "bakeField: a grid needs at least 2 nodes per axis, got " +
+                    std::to_string(resolution));
+  FieldGrid grid;
+  grid.joint = field.joint;
+  grid.resolution = resolution;
+  grid.bone_to_model = field.bone_to_model.cast<float>();
+  grid.box_min = field.support_box.min().cast<float>();
+  grid.box_max = field.support_box.max().cast<float>();
+  const size_t n = static_cast<size_t>(resolution);
+  grid.nodes.assign(4 * n * n * n, 0.f);
+
+  // Evaluate in the HRBF's normalised frame, straight from its coefficients.
+  const Hrbf& h = field.hrbf;
+  const int m = h.centreCount();
+  const std::vector<Eigen::Vector3d>& c = h.normalisedCentres();
+  const std::vector<double>& lambda = h.lambdas();
+  const std::vector<Eigen::Vector3d>& beta = h.betas();
+  const Eigen::Matrix3d rotation = field.bone_to_model.linear();
+  const Eigen::Vector3d box_min = field.support_box.min();
+  const Eigen::Vector3d step =
+      field.support_box.sizes() / static_cast<double>(resolution - 1);
+  const double scale = h.scale();
+  for (size_t k = 0; k < n; ++k) {
+    for (size_t j = 0; j < n; ++j) {
+      for (size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d local =
+            box_min + Eigen::Vector3d(i * step.x(), j * step.y(), k * step.z());
+        const Eigen::Vector3d x = field.bone_to_model * local;
+        const Eigen::Vector3d u = (x - h.origin()) / scale;
+        double d = h.linear().dot(u) + h.constant();
+        Eigen::Vector3d g = h.linear();
+        for (int q = 0; q < m; ++q) {
+          const Eigen::Vector3d v = u - c[q];
+          const double r = v.norm();
+          const double vb = v.dot(beta[q]);
+          d += lambda[q] * r * r * r + 3.0 * r * vb;
+          g += 3.0 * r * (lambda[q] * v + beta[q]);
+          if (r > 0) g += (3.0 * vb / r) * v;
+        }
+        d *= scale;
+        field.guard(x, d, g);
+        const double f = reparameterize(d, field.radius);
+        const Eigen::Vector3d grad =
+            reparameterizeDerivative(d, field.radius) *
+            (rotation.transpose() * g);
+        float* out = &grid.nodes[4 * (i + n * (j + n * k))];
+        out[0] = static_cast<float>(f);
+        out[1] = static_cast<float>(grad.x());
+        out[2] = static_cast<float>(grad.y());
+        out[3] = static_cast<float>(grad.z());
+      }
+    }
+  }
+  return grid;
+}
+
+size_t FieldGridSet::bytes() const {
+  size_t total = 0;
+  for (const auto& g : grids) total += g.bytes();
+  return total;
+}
+
+}  // namespace isk

@@ -1,0 +1,207 @@
+#include "isk/implicit_fields.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+#include "isk/error.hpp"
+
+namespace isk {
+namespace {
+
+double since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+// Runs work(i) for i in [0, count) on `threads` threads; the calling thread
+// reports progress(done / count) as items finish. The first exception thrown
+// by an item is rethrown after all threads stop.
+void parallelFor(int count, int threads, const std::function<void(int)>& work,
+                 const std::function<void(float)>& progress) {
+  if (count <= 0) return;
+  threads = std::max(1, std::min(threads, count));
+  std::atomic<int> next{0};
+  std::mutex mutex;
+  std::condition_variable finished;
+  int done = 0;
+  std::exception_ptr failure;
+  auto worker = [&] {
+    for (;;) {
+      const int i = next.fetch_add(1);
+      if (i >= count) return;
+      try {
+        work(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!failure) failure = std::current_exception();
+      }
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        ++done;
+      }
+      finished.notify_one();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    int reported = -1;
+    while (done < count) {
+      finished.wait(lock, [&] { return done != reported; });
+      reported = done;
+      if (progress) {
+        lock.unlock();
+        progress(static_cast<float>(reported) / count);
+        lock.lock();
+      }
+    }
+  }
+  for (auto& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+}
+
+// The part's vertices with their geometric normals, as samples: the last
+// resort for parts too small for Poisson-disk sampling.
+HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
+                             int joint) {
+  std::vector<Eigen::Vector3d> normals(mesh.vertexCount(),
+                                       Eigen::Vector3d::Zero());
+  for (int t : partition.part_triangles[joint]) {
+    const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(t, 0)).transpose().cast<double>();
+    const Eigen::Vector3d b = mesh.positions.row(mesh.triangles(t, 1)).transpose().cast<double>();
+    const Eigen::Vector3d c = mesh.positions.row(mesh.triangles(t, 2)).transpose().cast<double>();
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    for (int i = 0; i < 3; ++i) normals[mesh.triangles(t, i)] += n;
+  }
+  HermiteSamples s;
+  for (int v : partition.part_vertices[joint]) {
+    Eigen::Vector3d n = normals[v];
+    if (!(n.norm() > 0)) n = mesh.normals.row(v).transpose().cast<double>();
+    if (!(n.norm() > 0) || !n.allFinite()) continue;
+    s.positions.push_back(mesh.positions.row(v).transpose().cast<double>());
+    s.normals.push_back(n.normalized());
+  }
+  return s;
+}
+
+}  // namespace
+
+ImplicitFields buildImplicitFields(const Rig& rig,
+                                   const ImplicitFieldsOptions& options) {
+  if (options.grid_resolution < 2 || options.grid_resolution > 512)
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: grid_resolution must be in [2, 512], got " +
+                    std::to_string(options.grid_resolution));
+  if (options.sampling.target_samples < 1)
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: target_samples must be at least 1");
+  if (!(options.sampling.culling_h >= 0 && options.sampling.culling_h < 0.5))
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: culling_h must be in [0, 0.5)");
+  auto report = [&](const char* stage, float fraction) {
+    if (options.progress) options.progress(stage, fraction);
+  };
+  const int threads =
+      options.threads > 0
+          ? options.threads
+          : std::max(1u, std::thread::hardware_concurrency());
+  ImplicitFields out;
+  out.composition = options.composition;
+
+  auto start = std::chrono::steady_clock::now();
+  report("partition", 0);
+  out.partition = partitionMesh(rig);
+  out.warnings = out.partition.warnings;
+  report("partition", 1);
+  out.times.partition_ms = since(start);
+
+  start = std::chrono::steady_clock::now();
+  const Skeleton& skeleton = rig.skeleton;
+  const std::vector<int>& joints = out.partition.field_joints;
+  std::vector<BoneSamples> samples(joints.size());
+  for (size_t i = 0; i < joints.size(); ++i) {
+    const int j = joints[i];
+    const std::string name = "joint '" + skeleton.joints[j].name + "'";
+    samples[i] = sampleBonePart(rig.mesh, out.partition, j, options.sampling);
+    if (samples[i].all().size() < 4 && samples[i].culled > 0) {
+      BoneSamplingOptions uncut = options.sampling;
+      uncut.culling_h = 0;
+      samples[i] = sampleBonePart(rig.mesh, out.partition, j, uncut);
+      out.warnings.push_back(name + ": fewer than 4 samples after culling; "
+                                    "sampled without culling planes");
+    }
+    if (samples[i].all().size() < 4) {
+      samples[i].surface = vertexSamples(rig.mesh, out.partition, j);
+      out.warnings.push_back(
+          name + ": part too small for Poisson-disk sampling (" +
+          std::to_string(out.partition.part_vertices[j].size()) +
+          " vertices); its vertices are the samples");
+    }
+    report("sampling", static_cast<float>(i + 1) / joints.size());
+  }
+  if (options.edit_samples) options.edit_samples(samples);
+  out.times.sampling_ms = since(start);
+
+  start = std::chrono::steady_clock::now();
+  std::vector<BoneField> fields(samples.size());
+  std::vector<std::vector<std::string>> fit_warnings(samples.size());
+  std::vector<char> fitted(samples.size(), 0);
+  parallelFor(
+      static_cast<int>(samples.size()), threads,
+      [&](int i) {
+        try {
+          fields[i] = fitBoneField(skeleton, out.partition, samples[i],
+                                   &fit_warnings[i]);
+          fitted[i] = 1;
+        } catch (const Error& e) {
+          fit_warnings[i].push_back(std::string(e.what()) +
+                                    "; this bone gets no field");
+        }
+      },
+      [&](float f) { report("fitting", f); });
+  for (size_t i = 0; i < samples.size(); ++i) {
+    out.warnings.insert(out.warnings.end(), fit_warnings[i].begin(),
+                        fit_warnings[i].end());
+    if (!fitted[i]) continue;
+    out.samples.push_back(std::move(samples[i]));
+    out.fields.push_back(std::move(fields[i]));
+  }
+  out.times.fitting_ms = since(start);
+
+  start = std::chrono::steady_clock::now();
+  out.grids.resolution = options.grid_resolution;
+  out.grids.grids.resize(out.fields.size());
+  parallelFor(
+      static_cast<int>(out.fields.size()), threads,
+      [&](int i) {
+        out.grids.grids[i] = bakeField(out.fields[i], options.grid_resolution);
+      },
+      [&](float f) { report("baking", f); });
+  out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
+  for (int i = 0; i < out.grids.fieldCount(); ++i)
+    out.grids.field_of_joint[out.grids.grids[i].joint] = i;
+  out.times.baking_ms = since(start);
+
+  start = std::chrono::steady_clock::now();
+  report("iso values", 0);
+  out.iso_values = computeIsoValues(out.grids, rig.mesh.positions,
+                                    options.composition, &out.outside_vertices);
+  if (!out.outside_vertices.empty())
+    out.warnings.push_back(
+        std::to_string(out.outside_vertices.size()) +
+        " vertices lie outside every field's support (first: vertex " +
+        std::to_string(out.outside_vertices.front()) + " of " +
+        rig.mesh.describeVertex(out.outside_vertices.front()) +
+        "); surface tracking leaves them where skinning puts them");
+  report("iso values", 1);
+  out.times.iso_ms = since(start);
+  return out;
+}
+
+}  // namespace isk
