@@ -27,7 +27,8 @@ Eigen::Isometry3d boneFrame(const BoneSegment& segment) {
 
 }  // namespace
 
-BoneField fitBoneField(const Skeleton& skeleton, const BonePartition& partition,
+BoneField fitBoneField(const Skeleton& skeleton, const Matrix3Xf& mesh_positions,
+                       const BonePartition& partition,
                        const BoneSamples& samples,
                        std::vector<std::string>* warnings) {
   const int joint = samples.joint;
@@ -54,10 +55,19 @@ BoneField fitBoneField(const Skeleton& skeleton, const BonePartition& partition,
                 what + ": every sample lies on the bone; the field has no "
                        "support");
   field.bone_to_model = boneFrame(field.segment);
+  field.guard_radius = field.radius;
+  for (const auto& p : all.positions)
+    field.guard_radius = std::max(field.guard_radius, field.segment.distance(p));
+  if (joint < static_cast<int>(partition.part_vertices.size()))
+    for (int v : partition.part_vertices[joint])
+      field.guard_radius = std::max(
+          field.guard_radius,
+          field.segment.distance(mesh_positions.row(v).transpose().cast<double>()));
 
-  // The guard makes f vanish beyond 2r from the segment (x from 0 to L in
-  // the bone frame).
-  const Eigen::Vector3d grow = Eigen::Vector3d::Constant(2.0 * field.radius);
+  // The guard makes f vanish beyond R + r from the segment (x from 0 to L
+  // in the bone frame).
+  const Eigen::Vector3d grow =
+      Eigen::Vector3d::Constant(field.guard_radius + field.radius);
   field.support_box = Eigen::AlignedBox3d(
       -grow, Eigen::Vector3d(field.segment.length(), 0, 0) + grow);
   return field;
@@ -70,8 +80,8 @@ void BoneField::guard(const Eigen::Vector3d& x, double& distance,
       std::clamp(segment.along(x), 0.0, 1.0) * (segment.end - segment.start);
   const Eigen::Vector3d away = x - nearest;
   const double rho = away.norm();
-  if (rho - radius > distance) {
-    distance = rho - radius;
+  if (rho - guard_radius > distance) {
+    distance = rho - guard_radius;
     gradient = rho > 0 ? Eigen::Vector3d(away / rho) : Eigen::Vector3d::Zero();
   }
 }

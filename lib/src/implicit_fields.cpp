@@ -1,6 +1,8 @@
 #include "isk/implicit_fields.hpp"
 
+#include <array>
 #include <atomic>
+#include <map>
 #include <chrono>
 #include <condition_variable>
 #include <exception>
@@ -79,12 +81,22 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
     const Eigen::Vector3d n = (b - a).cross(c - a);
     for (int i = 0; i < 3; ++i) normals[mesh.triangles(t, i)] += n;
   }
-  HermiteSamples s;
+  // Vertices split along seams share a position: one sample each, with the
+  // summed normal.
+  std::map<std::array<float, 3>, Eigen::Vector3d> by_position;
   for (int v : partition.part_vertices[joint]) {
     Eigen::Vector3d n = normals[v];
     if (!(n.norm() > 0)) n = mesh.normals.row(v).transpose().cast<double>();
     if (!(n.norm() > 0) || !n.allFinite()) continue;
-    s.positions.push_back(mesh.positions.row(v).transpose().cast<double>());
+    const std::array<float, 3> key = {mesh.positions(v, 0), mesh.positions(v, 1),
+                                      mesh.positions(v, 2)};
+    auto it = by_position.emplace(key, Eigen::Vector3d::Zero()).first;
+    it->second += n.normalized();
+  }
+  HermiteSamples s;
+  for (const auto& [key, n] : by_position) {
+    if (!(n.norm() > 1e-9)) continue;
+    s.positions.push_back(Eigen::Vector3d(key[0], key[1], key[2]));
     s.normals.push_back(n.normalized());
   }
   return s;
@@ -156,7 +168,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
       static_cast<int>(samples.size()), threads,
       [&](int i) {
         try {
-          fields[i] = fitBoneField(skeleton, out.partition, samples[i],
+          fields[i] = fitBoneField(skeleton, rig.mesh.positions, out.partition, samples[i],
                                    &fit_warnings[i]);
           fitted[i] = 1;
         } catch (const Error& e) {

@@ -1,21 +1,24 @@
 // One bone's compactly supported field (Vaillant et al. 2013, section 4.1),
 // analytic form:
 //
-//   f_i(x) = t_r(max(d_i(x), rho(x) - r))
+//   f_i(x) = t_r(max(d_i(x), rho(x) - R))
 //
 // d_i is the HRBF fitted to the bone's samples; r is the distance from the
 // bone segment to the farthest sample used in the fit, so f_i = 1 is reached
-// only near the skeleton; rho is the distance from x to the bone segment.
+// only near the skeleton; rho is the distance from x to the bone segment and
+// R >= r the distance from the segment to the farthest sample or vertex of
+// the part.
 //
-// The max with rho - r is our guard, not the paper's: the cubic HRBF keeps
+// The max with rho - R is our guard, not the paper's: the cubic HRBF keeps
 // growing away from its samples and on an open or flat part it turns
 // negative again far away, so t_r(d_i) alone is not compactly supported
-// (it reaches 1 on whole half-spaces). Near a closed part the guard changes
-// nothing (there d_i < rho - r would mean a point deeper inside than its
-// distance to the r-capsule, which only happens between sparse samples);
-// beyond 2r from the bone it makes f_i exactly 0. So the support lies in the
-// capsule of radius 2r around the bone, and `support_box`, that capsule's box
-// in the bone frame, loses nothing.
+// (it reaches 1 on whole half-spaces). On the part's surface the guard
+// changes nothing (there d_i is about 0 and rho - R <= 0), and inside a
+// closed part rarely (d_i < rho - R means a point deeper inside than its
+// distance to the R-capsule); beyond R + r from the bone it makes f_i
+// exactly 0. So the support lies in the capsule of radius R + r around the
+// bone, and `support_box`, that capsule's box in the bone frame, loses
+// nothing.
 //
 // The field lives in the bone's frame: origin at b0, x along the bone (for a
 // point bone, the model axes).
@@ -29,13 +32,15 @@
 #include "isk/bone_partition.hpp"
 #include "isk/bone_samples.hpp"
 #include "isk/hrbf.hpp"
+#include "isk/types.hpp"
 
 namespace isk {
 
 struct BoneField {
   int joint = -1;
   Hrbf hrbf;           // fitted in model space (bind pose)
-  double radius = 0;   // r of t_r
+  double radius = 0;        // r of t_r
+  double guard_radius = 0;  // R of the guard (above)
   BoneSegment segment;
   Eigen::Isometry3d bone_to_model = Eigen::Isometry3d::Identity();
   Eigen::AlignedBox3d support_box;  // bone frame
@@ -54,10 +59,12 @@ struct BoneField {
                 Eigen::Vector3d& gradient) const;
 };
 
-// Fits the field of samples.joint. Throws isk::Error(kInvalidArgument) when
+// Fits the field of samples.joint (`mesh_positions`: the rig's rest mesh,
+// #V by 3, whose part vertices set R). Throws isk::Error(kInvalidArgument) when
 // fewer than 4 samples remain ("joint 'NAME': 3 samples, at least 4 are
 // needed"); warnings name the joint.
-BoneField fitBoneField(const Skeleton& skeleton, const BonePartition& partition,
+BoneField fitBoneField(const Skeleton& skeleton, const Matrix3Xf& mesh_positions,
+                       const BonePartition& partition,
                        const BoneSamples& samples,
                        std::vector<std::string>* warnings = nullptr);
 
