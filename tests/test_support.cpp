@@ -6,6 +6,7 @@
 
 #include "data_folder.hpp"
 #include "isk/import.hpp"
+#include "isk/procedural.hpp"
 
 namespace isk::test {
 
@@ -25,6 +26,31 @@ const Rig& loadAsset(const std::string& file) {
   auto it = cache.find(file);
   if (it == cache.end())
     it = cache.emplace(file, importRig(samples::dataFile(file))).first;
+  return it->second;
+}
+
+const Rig& rigNamed(const std::string& name) {
+  static std::mutex mutex;
+  static std::map<std::string, Rig> builtins;
+  for (const std::string& builtin : builtinRigNames()) {
+    if (builtin != name) continue;
+    std::lock_guard<std::mutex> lock(mutex);
+    auto it = builtins.find(name);
+    if (it == builtins.end())
+      it = builtins.emplace(name, makeBuiltinRig(name)).first;
+    return it->second;
+  }
+  return loadAsset(name);
+}
+
+const ImplicitFields& implicitFieldsOf(const std::string& name) {
+  const Rig& rig = rigNamed(name);
+  static std::mutex mutex;
+  static std::map<std::string, ImplicitFields> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto it = cache.find(name);
+  if (it == cache.end())
+    it = cache.emplace(name, buildImplicitFields(rig)).first;
   return it->second;
 }
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
+#include "isk/implicit_fields.hpp"
 #include "isk/rig.hpp"
 #include "isk/types.hpp"
 
@@ -20,6 +21,12 @@ const std::vector<std::string>& assetNames();
 
 // Loads an asset of the data folder (cached per process; each test copies).
 const Rig& loadAsset(const std::string& file);
+
+// A procedural rig by name ("cylinder", "finger", "arm") or an asset file of
+// the data folder (cached per process).
+const Rig& rigNamed(const std::string& name);
+// The implicit fields of rigNamed(name), built with default options (cached).
+const ImplicitFields& implicitFieldsOf(const std::string& name);
 
 // True when the data folder exists. When it does not, asset tests call
 // GTEST_SKIP with a message naming the folder and what was skipped.
