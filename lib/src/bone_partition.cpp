@@ -108,14 +108,22 @@ BonePartition partitionMesh(const Rig& rig) {
     s.joint = j;
     s.start = s.end = jointPosition(globals, j);
     const std::vector<int>& part = partition.part_vertices[j];
-    // Child candidates: the one nearest on average to the part's vertices.
+    // Several children: the one that continues the parent's direction (the
+    // spine goes on to the neck, not to a shoulder); at a root, the one
+    // nearest on average to the part's vertices.
+    const int parent_joint = skeleton.joints[j].parent;
+    Eigen::Vector3d incoming = Eigen::Vector3d::Zero();
+    if (parent_joint >= 0) incoming = s.start - jointPosition(globals, parent_joint);
+    const bool follow_chain = incoming.norm() > min_length;
     double best_fit = std::numeric_limits<double>::infinity();
     for (int c : children[j]) {
       BoneSegment candidate = s;
       candidate.end = jointPosition(globals, c);
       candidate.end_joint = c;
       if (candidate.length() <= min_length) continue;
-      const double fit = meanDistance(candidate, mesh, part);
+      const double fit =
+          follow_chain ? -candidate.direction().dot(incoming.normalized())
+                       : meanDistance(candidate, mesh, part);
       if (fit < best_fit) {
         best_fit = fit;
         s.end = candidate.end;

@@ -8,8 +8,10 @@
 //
 // The bone of joint j runs from the joint's bind position b0 to b1:
 // - one child: that child's bind position;
-// - several children: the child whose segment is nearest on average to the
-//   part's vertices (the bone the part wraps around);
+// - several children: the child that best continues the direction from the
+//   parent (the chain goes on: spine to neck rather than to a shoulder, hand
+//   to middle finger); at a root, the child whose segment is nearest on
+//   average to the part's vertices (the bone the part wraps around);
 // - no child (or only children at b0): along the direction from the parent,
 //   as far as the part's vertices reach along it;
 // - none of these possible (a root without children, or all candidate
