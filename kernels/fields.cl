@@ -1,0 +1,146 @@
+// Baked implicit fields (isk/field_grid.hpp) evaluated at posed points, and
+// their union (isk/field_evaluation.hpp). OpenCL C 1.2, self-contained. CPU
+// reference: lib/src/field_grid.cpp (sampling) and lib/src/field_evaluation.cpp
+// (transforms and composition). Host class: lib/src/cl/field_evaluation.cpp.
+//
+// Storage, chosen at build time by ISK_FIELDS_IMAGE (0 when undefined):
+//   1: one read-only image3d_t atlas, CL_RGBA / CL_FLOAT, every field one
+//      N^3 tile of it (tiles side by side in x, y and z; field i at tile
+//      (i % tx, (i / tx) % ty, i / (tx * ty))), sampled by the hardware's
+//      trilinear filter at tile_origin + u + 0.5;
+//   0: a __global const float4* buffer, field i at offset i * N^3, node
+//      (x, y, z) at x + N * (y + N * z), interpolated trilinearly here exactly
+//      as FieldGrid::sampleLocal does it.
+// A node's float4 is (value, gradient x y z), gradient in the bone frame.
+//
+// Field parameters: ISK_FIELD_PARAM_STRIDE float4 per field,
+//   [0..2] rows of the model -> bone 3x4 matrix (per pose);
+//   [3]    box_min.xyz (bone frame), w unused;
+//   [4]    1 / spacing, xyz, w = N - 1 (last node index, as a float);
+//   [5]    image path: tile origin + 0.5 (texels), xyz; unused by the buffer.
+//
+// Later kernels sample the same data: declare ISK_FIELD_PARAMS among their
+// parameters (field data, field params, field count, resolution: four
+// consecutive kernel arguments, bound by ClFieldEvaluation::setFieldArgs) and
+// call sample_composed(ISK_FIELD_ARGS, x).
+
+// The reference interpolates without fused multiply-adds; so does the buffer
+// path, so that on a CPU device both agree to the last bits.
+#pragma OPENCL FP_CONTRACT OFF
+
+#ifndef ISK_FIELDS_IMAGE
+#define ISK_FIELDS_IMAGE 0
+#endif
+
+#define ISK_FIELD_PARAM_STRIDE 6
+
+#if ISK_FIELDS_IMAGE
+#define ISK_FIELD_DATA_T read_only image3d_t
+// Texel centres at integer + 0.5; tile edges are reached with a zero weight
+// on the neighbour, so u in [0, N-1] never reads another tile.
+__constant sampler_t kFieldSampler =
+    CLK_NORMALIZED_COORDS_FALSE | CLK_ADDRESS_CLAMP_TO_EDGE | CLK_FILTER_LINEAR;
+#else
+#define ISK_FIELD_DATA_T __global const float4*
+#endif
+
+#define ISK_FIELD_PARAMS                                            \
+  ISK_FIELD_DATA_T field_data, __global const float4 *field_params, \
+      const uint field_count, const int resolution
+#define ISK_FIELD_ARGS field_data, field_params, field_count, resolution
+
+// Value and bone-frame gradient of field `field` at node coordinates u
+// (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
+float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
+                          __global const float4* params, const uint field,
+                          const int resolution, const float3 u) {
+  const float last = (float)(resolution - 1);
+  if (!(u.x >= 0.0f && u.y >= 0.0f && u.z >= 0.0f && u.x <= last &&
+        u.y <= last && u.z <= last))
+    return (float4)(0.0f);
+#if ISK_FIELDS_IMAGE
+  const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
+  return read_imagef(field_data, kFieldSampler, (float4)(origin + u, 0.0f));
+#else
+  // Same order of operations as FieldGrid::sampleLocal.
+  const int3 i = min(convert_int3_rtz(u), (int3)(resolution - 2));
+  const float3 t = u - convert_float3(i);
+  const size_t n = (size_t)resolution;
+  __global const float4* base =
+      field_data + (size_t)field * n * n * n +
+      ((size_t)i.x + n * ((size_t)i.y + n * (size_t)i.z));
+  const size_t dy = n;
+  const size_t dz = n * n;
+  const float4 x00 = base[0] + t.x * (base[1] - base[0]);
+  const float4 x10 = base[dy] + t.x * (base[dy + 1] - base[dy]);
+  const float4 x01 = base[dz] + t.x * (base[dz + 1] - base[dz]);
+  const float4 x11 = base[dy + dz] + t.x * (base[dy + dz + 1] - base[dy + dz]);
+  const float4 y0 = x00 + t.y * (x10 - x00);
+  const float4 y1 = x01 + t.y * (x11 - x01);
+  return y0 + t.z * (y1 - y0);
+#endif
+}
+
+// Value and model-space gradient of field `field` at model-space point x
+// (posed): x is taken to the bone frame by the field's 3x4 rows, sampled,
+// and the gradient comes back by the transpose of the rows' linear part.
+float4 sample_field(ISK_FIELD_DATA_T field_data,
+                    __global const float4* field_params, const uint field,
+                    const int resolution, const float3 x) {
+  __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
+  const float4 r0 = p[0];
+  const float4 r1 = p[1];
+  const float4 r2 = p[2];
+  // Column by column, as the reference's Eigen product sums.
+  const float3 bone =
+      (float3)(r0.x, r1.x, r2.x) * x.x + (float3)(r0.y, r1.y, r2.y) * x.y +
+      (float3)(r0.z, r1.z, r2.z) * x.z + (float3)(r0.w, r1.w, r2.w);
+  const float3 u = (bone - p[3].xyz) * p[4].xyz;
+  const float4 s =
+      sample_field_nodes(field_data, field_params, field, resolution, u);
+  const float3 g = s.y * r0.xyz + s.z * r1.xyz + s.w * r2.xyz;
+  return (float4)(s.x, g);
+}
+
+// Union (Vaillant et al. 2013, eq. 3): the larger value with its gradient;
+// on ties the field met first stays. Start from (float4)(0): nothing
+// positive gives value 0 and a zero gradient.
+float4 compose_union(const float4 best, const float4 sample) {
+  return sample.x > best.x ? sample : best;
+}
+
+// The composed field at model-space point x.
+float4 sample_composed(ISK_FIELD_PARAMS, const float3 x) {
+  float4 best = (float4)(0.0f);
+  for (uint i = 0; i < field_count; ++i)
+    best = compose_union(
+        best, sample_field(field_data, field_params, i, resolution, x));
+  return best;
+}
+
+// Arguments (ClFieldEvaluation binds them in this order):
+//   0 points          packed float3 (x y z per point), model space, posed
+//   1 point_count
+//   2 field_data      image atlas or float4 buffer (see above)
+//   3 field_params    ISK_FIELD_PARAM_STRIDE float4 per field
+//   4 field_count
+//   5 resolution      nodes per axis, N
+//   6 out_composed    one float4 per point: value, gradient x y z
+//   7 out_per_field   one float4 per point and field, row p * F + i
+//   8 write_per_field 0: out_per_field is not touched (may be a dummy)
+__kernel void evaluate_fields(__global const float* points,
+                              const uint point_count, ISK_FIELD_PARAMS,
+                              __global float4* out_composed,
+                              __global float4* out_per_field,
+                              const uint write_per_field) {
+  const uint p = get_global_id(0);
+  if (p >= point_count) return;
+  const float3 x = vload3(p, points);
+  float4 best = (float4)(0.0f);
+  for (uint i = 0; i < field_count; ++i) {
+    const float4 s = sample_field(field_data, field_params, i, resolution, x);
+    if (write_per_field) out_per_field[(size_t)p * field_count + i] = s;
+    best = compose_union(best, s);
+  }
+  out_composed[p] = best;
+}

@@ -1,0 +1,154 @@
+// Baked implicit fields evaluated on an OpenCL device.
+//
+// Host class of kernels/fields.cl: uploads a character's baked grids
+// (isk/field_grid.hpp) once, then per frame uploads only the fields'
+// model -> bone transforms and evaluates every field and their union at
+// posed points. Results match the CPU reference FieldEvaluationJob
+// (isk/field_evaluation.hpp): to float rounding on the buffer path, to the
+// device's texture filtering precision on the image path (GPUs interpolate
+// with 8-bit weights).
+//
+// Storage of the grids (FieldStorage):
+//   kImage   one read-only 3D image (CL_RGBA / CL_FLOAT) holding every field
+//            as an N^3 tile, sampled with the hardware's trilinear filter;
+//   kBuffer  one float4 buffer, field i at offset i * N^3, interpolated in
+//            the kernel exactly as FieldGrid::sampleLocal;
+//   kAuto    the environment variable ISK_FIELD_STORAGE=image|buffer when set
+//            (auto or empty: ignored; anything else: isk::Error
+//            kInvalidArgument), else kImage on GPU devices and kBuffer on
+//            every other device (CPU devices such as PoCL: their image
+//            filtering runs in software and is slower than the buffer path).
+// kImage (asked for or picked by kAuto) falls back to kBuffer when the device
+// has no image support, no CL_RGBA / CL_FLOAT 3D images, or when the atlas
+// would exceed CL_DEVICE_IMAGE3D_MAX_WIDTH / HEIGHT / DEPTH; storage() tells
+// what is used and storageReason() why.
+//
+// Other kernels can sample the same data (kernels/fields.cl: functions
+// sample_field, compose_union, sample_composed): build them with
+// buildOptions(), put ISK_FIELD_PARAMS among their parameters (four
+// consecutive arguments: field data, field params, field count, resolution)
+// and bind those with setFieldArgs(kernel, first_index) after setPose().
+// The evaluate_fields kernel itself takes: 0 points (packed float3), 1 point
+// count, 2 field data, 3 field params, 4 field count, 5 resolution,
+// 6 composed output (float4 per point), 7 per-field output (float4 per point
+// and field, row p * F + i), 8 whether to write the per-field output.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "isk/cl/runtime.hpp"
+#include "isk/field_evaluation.hpp"
+#include "isk/field_grid.hpp"
+#include "isk/types.hpp"
+
+namespace isk {
+
+enum class FieldStorage { kAuto, kImage, kBuffer };
+
+// "auto", "image", "buffer".
+const char* fieldStorageName(FieldStorage storage);
+
+class ClFieldEvaluation {
+ public:
+  // float4 per field in the params buffer (kernels/fields.cl's layout).
+  static constexpr int kParamStride = 6;
+
+  // Validates the grids against `joint_count` (the length of the transform
+  // lists evaluate() takes) and uploads them; isk::Error kInvalidArgument
+  // names the bad field, kOpenCl the failing call.
+  ClFieldEvaluation(std::shared_ptr<ClContext> context,
+                    const FieldGridSet& fields, int joint_count,
+                    FieldStorage storage = FieldStorage::kAuto);
+
+  // Host path: evaluates at `points` (#P by 3, model space, posed) for the
+  // pose `skinning` (#joints skinning transforms). out_composed: #P by 4
+  // (value, gradient); out_per_field, when given: (#P * #fields) by 4, row
+  // p * #fields + i. Blocking.
+  void evaluate(const TransformList& skinning, const Matrix3Xf& points,
+                Matrix4Xf& out_composed, Matrix4Xf* out_per_field = nullptr);
+
+  // Device path: evaluates at the first `point_count` packed float3 points
+  // (x y z per point) of `points`; results stay on the device in
+  // composedBuffer() (and perFieldBuffer() when `per_field`). Returns when
+  // the device is done (lastKernelMs() holds this call's kernel time).
+  void evaluate(const TransformList& skinning, const cl::Buffer& points,
+                int point_count, bool per_field = false);
+
+  // Blocking reads of the last device-path results.
+  void readComposed(Matrix4Xf& out);
+  void readPerField(Matrix4Xf& out);
+  // Last results: point_count float4 (composed), point_count * #fields
+  // float4 (per field, valid only after a per_field evaluation). Grown as
+  // needed, never shrunk.
+  const cl::Buffer& composedBuffer() const { return composed_; }
+  const cl::Buffer& perFieldBuffer() const { return per_field_; }
+
+  // Uploads the fields' model -> bone transforms for `skinning` (#joints);
+  // evaluate() does it itself. Validates like evaluate().
+  void setPose(const TransformList& skinning);
+
+  // Binds field data, field params, field count and resolution to
+  // arguments first_index .. first_index + 3 of `kernel` (a kernel of a
+  // program built with buildOptions()).
+  void setFieldArgs(cl::Kernel& kernel, cl_uint first_index) const;
+  // "-DISK_FIELDS_IMAGE=1" or "-DISK_FIELDS_IMAGE=0".
+  std::string buildOptions() const;
+
+  FieldStorage storage() const { return storage_; }
+  const std::string& storageReason() const { return storage_reason_; }
+  // Field data: fieldImage() on the image path, fieldBuffer() on the buffer
+  // path (the other is a null object).
+  const cl::Image3D& fieldImage() const { return image_; }
+  const cl::Buffer& fieldBuffer() const { return nodes_; }
+  // kParamStride float4 per field (fields.cl's layout), the last setPose's.
+  const cl::Buffer& fieldParams() const { return params_; }
+
+  int fieldCount() const { return field_count_; }
+  int resolution() const { return resolution_; }
+  int jointCount() const { return joint_count_; }
+  // Tiles of the image atlas per axis (1 1 1 on the buffer path).
+  const std::array<int, 3>& atlasTiles() const { return tiles_; }
+  // Device memory held: field data (the atlas with its unused tiles),
+  // params, points and results.
+  size_t bytes() const;
+  // Device memory of the field data alone.
+  size_t fieldBytes() const { return field_bytes_; }
+  // Kernel time of the last evaluation (profiling event, else host wall
+  // time around the finished kernel), and its upload of the pose.
+  double lastKernelMs() const { return kernel_ms_; }
+  double lastUploadMs() const { return upload_ms_; }
+
+  ClContext& context() { return *context_; }
+  const ClContext& context() const { return *context_; }
+
+ private:
+  void chooseStorage(FieldStorage requested, const FieldGridSet& fields);
+  void uploadImage(const FieldGridSet& fields);
+  void uploadBuffer(const FieldGridSet& fields);
+  void ensureOutputs(int point_count, bool per_field);
+
+  std::shared_ptr<ClContext> context_;
+  FieldGridSet layout_;  // the grids without their nodes (joints, frames)
+  int field_count_ = 0;
+  int resolution_ = 0;
+  int joint_count_ = 0;
+  FieldStorage storage_ = FieldStorage::kBuffer;
+  std::string storage_reason_;
+  std::array<int, 3> tiles_ = {1, 1, 1};
+  cl::Kernel kernel_;
+  cl::Image3D image_;
+  cl::Buffer nodes_;
+  cl::Buffer params_;
+  std::vector<float> params_staging_;  // read by non-blocking writes
+  cl::Buffer points_, composed_, per_field_, dummy_;
+  size_t points_bytes_ = 0, composed_bytes_ = 0, per_field_bytes_ = 0;
+  size_t field_bytes_ = 0;
+  int last_point_count_ = 0;
+  bool last_per_field_ = false;
+  double kernel_ms_ = 0, upload_ms_ = 0;
+};
+
+}  // namespace isk

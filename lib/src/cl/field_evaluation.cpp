@@ -1,0 +1,442 @@
+#include "isk/cl/field_evaluation.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+#include "isk/error.hpp"
+
+namespace isk {
+namespace {
+
+constexpr size_t kFloat4 = 4 * sizeof(float);
+
+size_t roundUp(size_t n, size_t multiple) {
+  return (n + multiple - 1) / multiple * multiple;
+}
+
+double since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+[[noreturn]] void invalid(const std::string& message) {
+  throw Error(ErrorCode::kInvalidArgument, "ClFieldEvaluation: " + message);
+}
+
+void validateFields(const FieldGridSet& fields, int joint_count) {
+  if (joint_count < 0) invalid("joint_count is " + std::to_string(joint_count));
+  const int n = fields.resolution;
+  if (n < 2)
+    invalid("the field set's resolution is " + std::to_string(n) +
+            ", a grid needs at least 2 nodes per axis");
+  const size_t nodes = 4 * static_cast<size_t>(n) * n * n;
+  for (size_t i = 0; i < fields.grids.size(); ++i) {
+    const FieldGrid& g = fields.grids[i];
+    const std::string field = "field " + std::to_string(i);
+    if (g.joint < 0 || g.joint >= joint_count)
+      invalid(field + " belongs to joint " + std::to_string(g.joint) +
+              " but the skeleton has " + std::to_string(joint_count) +
+              " joints");
+    if (g.resolution != n)
+      invalid(field + " has " + std::to_string(g.resolution) +
+              " nodes per axis but the set has " + std::to_string(n) +
+              " (every field of a set shares one resolution)");
+    if (g.nodes.size() != nodes)
+      invalid(field + " holds " + std::to_string(g.nodes.size()) + " floats, " +
+              std::to_string(nodes) + " expected (4 per node)");
+    if (!g.bone_to_model.matrix().allFinite())
+      invalid(field + " has a non-finite bone frame");
+    if (!g.box_min.allFinite() || !g.box_max.allFinite() ||
+        !(g.box_max.array() > g.box_min.array()).all())
+      invalid(field + " has an empty or non-finite support box");
+    for (size_t k = 0; k < g.nodes.size(); ++k)
+      if (!std::isfinite(g.nodes[k]))
+        invalid(field + " node " + std::to_string(k / 4) + " is not finite");
+  }
+}
+
+}  // namespace
+
+const char* fieldStorageName(FieldStorage storage) {
+  switch (storage) {
+    case FieldStorage::kAuto:
+      return "auto";
+    case FieldStorage::kImage:
+      return "image";
+    case FieldStorage::kBuffer:
+      return "buffer";
+  }
+  return "unknown";
+}
+
+ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
+                                     const FieldGridSet& fields,
+                                     int joint_count, FieldStorage storage)
+    : context_(std::move(context)),
+      field_count_(fields.fieldCount()),
+      resolution_(fields.resolution),
+      joint_count_(joint_count) {
+  if (!context_) invalid("no context");
+  validateFields(fields, joint_count);
+  layout_.resolution = fields.resolution;
+  layout_.field_of_joint = fields.field_of_joint;
+  layout_.grids.reserve(fields.grids.size());
+  for (const FieldGrid& g : fields.grids) {
+    FieldGrid meta;
+    meta.joint = g.joint;
+    meta.resolution = g.resolution;
+    meta.bone_to_model = g.bone_to_model;
+    meta.box_min = g.box_min;
+    meta.box_max = g.box_max;
+    layout_.grids.push_back(std::move(meta));
+  }
+  chooseStorage(storage, fields);
+
+  // Static parameters; the rows of the transforms come with each pose.
+  params_staging_.assign(
+      static_cast<size_t>(std::max(field_count_, 1)) * kParamStride * 4, 0.f);
+  for (int i = 0; i < field_count_; ++i) {
+    const FieldGrid& g = fields.grids[i];
+    float* p = &params_staging_[static_cast<size_t>(i) * kParamStride * 4];
+    const Eigen::Vector3f spacing = g.spacing();
+    for (int a = 0; a < 3; ++a) {
+      p[12 + a] = g.box_min[a];
+      p[16 + a] = 1.f / spacing[a];
+    }
+    p[19] = static_cast<float>(resolution_ - 1);
+    const int tile[3] = {i % tiles_[0], (i / tiles_[0]) % tiles_[1],
+                         i / (tiles_[0] * tiles_[1])};
+    for (int a = 0; a < 3; ++a)
+      p[20 + a] = storage_ == FieldStorage::kImage
+                      ? static_cast<float>(tile[a] * resolution_) + 0.5f
+                      : 0.f;
+  }
+
+  const cl::Context& ctx = context_->context();
+  try {
+    cl::Program program = context_->program("fields", buildOptions());
+    kernel_ = cl::Kernel(program, "evaluate_fields");
+    if (storage_ == FieldStorage::kImage)
+      uploadImage(fields);
+    else
+      uploadBuffer(fields);
+    params_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                         params_staging_.size() * sizeof(float),
+                         params_staging_.data());
+    dummy_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, kFloat4);
+    composed_ = dummy_;
+    per_field_ = dummy_;
+  } catch (const cl::Error& e) {
+    throwClError(e, std::string("ClFieldEvaluation: uploading ") +
+                        std::to_string(field_count_) + " fields (" +
+                        fieldStorageName(storage_) + ") to " +
+                        context_->info().describe());
+  }
+}
+
+void ClFieldEvaluation::chooseStorage(FieldStorage requested,
+                                      const FieldGridSet& fields) {
+  const ClDeviceInfo& info = context_->info();
+  FieldStorage wanted = requested;
+  if (requested == FieldStorage::kAuto) {
+    const char* env = std::getenv("ISK_FIELD_STORAGE");
+    const std::string value = env ? env : "";
+    if (value == "image") {
+      wanted = FieldStorage::kImage;
+      storage_reason_ = "ISK_FIELD_STORAGE=image";
+    } else if (value == "buffer") {
+      wanted = FieldStorage::kBuffer;
+      storage_reason_ = "ISK_FIELD_STORAGE=buffer";
+    } else if (value.empty() || value == "auto") {
+      wanted = info.is_gpu ? FieldStorage::kImage : FieldStorage::kBuffer;
+      storage_reason_ =
+          info.is_gpu ? "auto: a GPU device" : "auto: not a GPU device";
+    } else {
+      invalid("ISK_FIELD_STORAGE='" + value +
+              "' is not one of image, buffer or auto");
+    }
+  } else {
+    storage_reason_ = std::string("asked for ") + fieldStorageName(requested);
+  }
+  storage_ = wanted;
+  tiles_ = {1, 1, 1};
+  if (wanted != FieldStorage::kImage) return;
+
+  std::string problem;
+  try {
+    const cl::Device& device = context_->device();
+    if (!device.getInfo<CL_DEVICE_IMAGE_SUPPORT>()) {
+      problem = "the device has no image support";
+    } else {
+      std::vector<cl::ImageFormat> formats;
+      context_->context().getSupportedImageFormats(
+          CL_MEM_READ_ONLY, CL_MEM_OBJECT_IMAGE3D, &formats);
+      const bool rgba_float =
+          std::any_of(formats.begin(), formats.end(), [](const auto& f) {
+            return f.image_channel_order == CL_RGBA &&
+                   f.image_channel_data_type == CL_FLOAT;
+          });
+      const size_t n = static_cast<size_t>(fields.resolution);
+      const size_t max_tiles[3] = {
+          device.getInfo<CL_DEVICE_IMAGE3D_MAX_WIDTH>() / n,
+          device.getInfo<CL_DEVICE_IMAGE3D_MAX_HEIGHT>() / n,
+          device.getInfo<CL_DEVICE_IMAGE3D_MAX_DEPTH>() / n};
+      // The atlas as close to a cube as the limits allow, then with the
+      // fewest tiles: the filter's texel coordinates stay small (a float
+      // coordinate of 2048 keeps only 1/4096 of a texel) and every axis
+      // stays far from its limit.
+      const size_t count = static_cast<size_t>(std::max(field_count_, 1));
+      size_t tx = 0, ty = 0, tz = 0;
+      size_t best_side = 0, best_tiles = 0;
+      for (size_t z = 1; z <= std::min(count, max_tiles[2]); ++z) {
+        for (size_t y = 1; y <= std::min(count, max_tiles[1]); ++y) {
+          const size_t x = (count + y * z - 1) / (y * z);
+          if (x > max_tiles[0]) continue;
+          const size_t side = std::max({x, y, z});
+          const size_t tiles = x * y * z;
+          if (tx == 0 || side < best_side ||
+              (side == best_side && tiles < best_tiles)) {
+            tx = x;
+            ty = y;
+            tz = z;
+            best_side = side;
+            best_tiles = tiles;
+          }
+        }
+      }
+      if (!rgba_float) {
+        problem = "the device has no CL_RGBA / CL_FLOAT 3D images";
+      } else if (tx == 0) {
+        problem = "an atlas of " + std::to_string(count) + " tiles of " +
+                  std::to_string(n) + "^3 exceeds CL_DEVICE_IMAGE3D_MAX_* (" +
+                  std::to_string(max_tiles[0] * n) + " x " +
+                  std::to_string(max_tiles[1] * n) + " x " +
+                  std::to_string(max_tiles[2] * n) + ")";
+      } else {
+        tiles_ = {static_cast<int>(tx), static_cast<int>(ty),
+                  static_cast<int>(tz)};
+      }
+    }
+  } catch (const cl::Error& e) {
+    throwClError(
+        e, "ClFieldEvaluation: querying image support of " + info.describe());
+  }
+  if (!problem.empty()) {
+    storage_ = FieldStorage::kBuffer;
+    tiles_ = {1, 1, 1};
+    storage_reason_ += "; falls back to buffer: " + problem;
+  }
+}
+
+void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
+  const size_t n = static_cast<size_t>(resolution_);
+  const size_t width = tiles_[0] * n;
+  const size_t height = tiles_[1] * n;
+  const size_t depth = tiles_[2] * n;
+  // Unused tiles stay 0: a tile's last node reads its neighbour with a zero
+  // weight, which must not be a NaN.
+  std::vector<float> atlas(4 * width * height * depth, 0.f);
+  for (int i = 0; i < field_count_; ++i) {
+    const size_t ox = (i % tiles_[0]) * n;
+    const size_t oy = ((i / tiles_[0]) % tiles_[1]) * n;
+    const size_t oz = (i / (tiles_[0] * tiles_[1])) * n;
+    const float* src = fields.grids[i].nodes.data();
+    for (size_t z = 0; z < n; ++z) {
+      for (size_t y = 0; y < n; ++y) {
+        std::memcpy(&atlas[4 * (ox + width * ((oy + y) + height * (oz + z)))],
+                    src + 4 * n * (y + n * z), n * kFloat4);
+      }
+    }
+  }
+  image_ =
+      cl::Image3D(context_->context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                  cl::ImageFormat(CL_RGBA, CL_FLOAT), width, height, depth, 0,
+                  0, atlas.data());
+  field_bytes_ = atlas.size() * sizeof(float);
+}
+
+void ClFieldEvaluation::uploadBuffer(const FieldGridSet& fields) {
+  const size_t per_field =
+      4 * static_cast<size_t>(resolution_) * resolution_ * resolution_;
+  std::vector<float> nodes(per_field * std::max(field_count_, 1), 0.f);
+  for (int i = 0; i < field_count_; ++i)
+    std::copy(fields.grids[i].nodes.begin(), fields.grids[i].nodes.end(),
+              nodes.begin() + per_field * i);
+  nodes_ =
+      cl::Buffer(context_->context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                 nodes.size() * sizeof(float), nodes.data());
+  field_bytes_ = nodes.size() * sizeof(float);
+}
+
+std::string ClFieldEvaluation::buildOptions() const {
+  return storage_ == FieldStorage::kImage ? "-DISK_FIELDS_IMAGE=1"
+                                          : "-DISK_FIELDS_IMAGE=0";
+}
+
+void ClFieldEvaluation::setFieldArgs(cl::Kernel& kernel,
+                                     cl_uint first_index) const {
+  try {
+    if (storage_ == FieldStorage::kImage)
+      kernel.setArg(first_index, image_);
+    else
+      kernel.setArg(first_index, nodes_);
+    kernel.setArg(first_index + 1, params_);
+    kernel.setArg(first_index + 2, static_cast<cl_uint>(field_count_));
+    kernel.setArg(first_index + 3, static_cast<cl_int>(resolution_));
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClFieldEvaluation::setFieldArgs (arguments " +
+                        std::to_string(first_index) + " to " +
+                        std::to_string(first_index + 3) + ")");
+  }
+}
+
+size_t ClFieldEvaluation::bytes() const {
+  return field_bytes_ + params_staging_.size() * sizeof(float) + points_bytes_ +
+         composed_bytes_ + per_field_bytes_ + kFloat4;
+}
+
+void ClFieldEvaluation::setPose(const TransformList& skinning) {
+  if (static_cast<int>(skinning.size()) != joint_count_)
+    invalid(std::to_string(skinning.size()) +
+            " skinning transforms given for a skeleton of " +
+            std::to_string(joint_count_) + " joints");
+  for (size_t j = 0; j < skinning.size(); ++j)
+    if (!skinning[j].matrix().allFinite())
+      invalid("skinning transform " + std::to_string(j) + " is not finite");
+  // The reference's own transforms, so that both paths sample alike.
+  const std::vector<Eigen::Affine3f> to_bone =
+      fieldTransforms(layout_, skinning);
+  for (int i = 0; i < field_count_; ++i) {
+    float* p = &params_staging_[static_cast<size_t>(i) * kParamStride * 4];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) p[4 * r + c] = to_bone[i].matrix()(r, c);
+  }
+  upload_ms_ = 0;
+  if (field_count_ == 0) return;
+  try {
+    cl::Event write;
+    const auto start = std::chrono::steady_clock::now();
+    // Blocking: the staging vector is rewritten by the next pose.
+    context_->queue().enqueueWriteBuffer(
+        params_, CL_TRUE, 0,
+        static_cast<size_t>(field_count_) * kParamStride * kFloat4,
+        params_staging_.data(), nullptr, &write);
+    upload_ms_ =
+        context_->profilingEnabled() ? eventMilliseconds(write) : since(start);
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClFieldEvaluation::setPose");
+  }
+}
+
+void ClFieldEvaluation::ensureOutputs(int point_count, bool per_field) {
+  const cl::Context& ctx = context_->context();
+  const size_t composed = static_cast<size_t>(point_count) * kFloat4;
+  if (composed > composed_bytes_) {
+    composed_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, composed);
+    composed_bytes_ = composed;
+  }
+  const size_t fields = composed * field_count_;
+  if (per_field && fields > per_field_bytes_) {
+    per_field_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, fields);
+    per_field_bytes_ = fields;
+  }
+}
+
+void ClFieldEvaluation::evaluate(const TransformList& skinning,
+                                 const cl::Buffer& points, int point_count,
+                                 bool per_field) {
+  if (point_count < 0) invalid("point_count is " + std::to_string(point_count));
+  if (point_count > 0 && !points()) invalid("no points buffer");
+  setPose(skinning);
+  last_point_count_ = 0;
+  last_per_field_ = per_field;
+  kernel_ms_ = 0;
+  if (point_count == 0) return;
+  try {
+    const size_t needed = 3 * sizeof(float) * static_cast<size_t>(point_count);
+    const size_t size = points.getInfo<CL_MEM_SIZE>();
+    if (size < needed)
+      invalid("the points buffer holds " + std::to_string(size) + " bytes, " +
+              std::to_string(point_count) + " packed float3 points need " +
+              std::to_string(needed));
+    ensureOutputs(point_count, per_field);
+    kernel_.setArg(0, points);
+    kernel_.setArg(1, static_cast<cl_uint>(point_count));
+    setFieldArgs(kernel_, 2);
+    kernel_.setArg(6, composed_);
+    kernel_.setArg(7, per_field && field_count_ > 0 ? per_field_ : dummy_);
+    kernel_.setArg(8, static_cast<cl_uint>(per_field ? 1 : 0));
+    cl::Event run;
+    const auto start = std::chrono::steady_clock::now();
+    context_->queue().enqueueNDRangeKernel(
+        kernel_, cl::NullRange,
+        cl::NDRange(roundUp(static_cast<size_t>(point_count), 64)),
+        cl::NullRange, nullptr, &run);
+    run.wait();
+    kernel_ms_ =
+        context_->profilingEnabled() ? eventMilliseconds(run) : since(start);
+  } catch (const cl::Error& e) {
+    throwClError(e, std::string("ClFieldEvaluation::evaluate (") +
+                        fieldStorageName(storage_) + ", " +
+                        std::to_string(point_count) + " points) on " +
+                        context_->info().describe());
+  }
+  last_point_count_ = point_count;
+}
+
+void ClFieldEvaluation::evaluate(const TransformList& skinning,
+                                 const Matrix3Xf& points,
+                                 Matrix4Xf& out_composed,
+                                 Matrix4Xf* out_per_field) {
+  if (points.rows() > static_cast<Eigen::Index>(1 << 30))
+    invalid(std::to_string(points.rows()) + " points are too many");
+  const int count = static_cast<int>(points.rows());
+  const size_t bytes = static_cast<size_t>(points.size()) * sizeof(float);
+  try {
+    if (bytes > points_bytes_) {
+      points_ = cl::Buffer(context_->context(), CL_MEM_READ_ONLY, bytes);
+      points_bytes_ = bytes;
+    }
+    if (bytes > 0)
+      context_->queue().enqueueWriteBuffer(points_, CL_TRUE, 0, bytes,
+                                           points.data());
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClFieldEvaluation::evaluate: uploading " +
+                        std::to_string(count) + " points");
+  }
+  evaluate(skinning, points_, count, out_per_field != nullptr);
+  readComposed(out_composed);
+  if (out_per_field) readPerField(*out_per_field);
+}
+
+void ClFieldEvaluation::readComposed(Matrix4Xf& out) {
+  out.resize(last_point_count_, 4);
+  if (out.size() == 0) return;
+  try {
+    context_->queue().enqueueReadBuffer(composed_, CL_TRUE, 0,
+                                        out.size() * sizeof(float), out.data());
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClFieldEvaluation::readComposed");
+  }
+}
+
+void ClFieldEvaluation::readPerField(Matrix4Xf& out) {
+  if (!last_per_field_)
+    invalid(
+        "readPerField: the last evaluation did not ask for per-field results");
+  out.resize(static_cast<Eigen::Index>(last_point_count_) * field_count_, 4);
+  if (out.size() == 0) return;
+  try {
+    context_->queue().enqueueReadBuffer(per_field_, CL_TRUE, 0,
+                                        out.size() * sizeof(float), out.data());
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClFieldEvaluation::readPerField");
+  }
+}
+
+}  // namespace isk
