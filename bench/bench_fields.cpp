@@ -3,14 +3,24 @@
 // hardware thread. Counters give each stage's milliseconds, the number of
 // fields and the baked fields' memory.
 //
+// Field evaluation at the skinned vertices of a clip frame (what surface
+// tracking does once per vertex and step): the single-thread CPU reference
+// against the OpenCL kernel with the grids in a buffer and in a 3D image;
+// points already on the device, composed value + gradient left there.
+//
 //   isk_bench --benchmark_filter='FieldBuild'
+//   isk_bench --benchmark_filter='FieldEval'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <map>
+#include <memory>
 #include <string>
 #include <thread>
 
 #include "bench_support.hpp"
+#include "isk/cl/field_evaluation.hpp"
+#include "isk/cpu_skinning.hpp"
 #include "isk/implicit_fields.hpp"
 
 namespace isk::bench {
@@ -49,6 +59,93 @@ void buildFields(benchmark::State& state, const Model& model, int threads) {
   state.SetLabel(std::to_string(threads) + " thread(s)");
 }
 
+const ImplicitFields& fieldsOf(const Model& model) {
+  static std::map<std::string, std::unique_ptr<ImplicitFields>> cache;
+  auto& slot = cache[model.name];
+  if (!slot)
+    slot = std::make_unique<ImplicitFields>(buildImplicitFields(rigOf(model)));
+  return *slot;
+}
+
+// Skinned (DQS) positions of a few frames of the first clip, with their pose.
+struct PosedFrames {
+  std::vector<TransformList> poses;
+  std::vector<Matrix3Xf> positions;
+};
+const PosedFrames& framesOf(const Model& model) {
+  static std::map<std::string, std::unique_ptr<PosedFrames>> cache;
+  auto& slot = cache[model.name];
+  if (!slot) {
+    const Rig& rig = rigOf(model);
+    slot = std::make_unique<PosedFrames>();
+    CpuSkinning skinning(rig.mesh, rig.weights, rig.skeleton.jointCount());
+    for (int frame = 0; frame < 8; ++frame) {
+      slot->poses.push_back(poseAt(rig, frame * 4));
+      skinning.run(SkinningMethod::kDualQuaternion, slot->poses.back(), false);
+      slot->positions.push_back(skinning.positions());
+    }
+  }
+  return *slot;
+}
+
+void evaluateReference(benchmark::State& state, const Model& model) {
+  const ImplicitFields& fields = fieldsOf(model);
+  const PosedFrames& frames = framesOf(model);
+  Matrix4Xf composed;
+  FieldEvaluationJob job;
+  job.fields = &fields.grids;
+  job.out_composed = &composed;
+  size_t frame = 0;
+  for (auto _ : state) {
+    job.skinning = &frames.poses[frame % frames.poses.size()];
+    job.points = &frames.positions[frame % frames.poses.size()];
+    job.run();
+    benchmark::DoNotOptimize(composed.data());
+    ++frame;
+  }
+  state.counters["points"] = rigOf(model).mesh.vertexCount();
+  state.counters["fields"] = fields.grids.fieldCount();
+  state.SetLabel("CPU reference, 1 thread");
+}
+
+void evaluateOpenCl(benchmark::State& state, const Model& model,
+                    FieldStorage storage) {
+  const ImplicitFields& fields = fieldsOf(model);
+  const PosedFrames& frames = framesOf(model);
+  const Rig& rig = rigOf(model);
+  ClFieldEvaluation evaluation(context(), fields.grids,
+                               rig.skeleton.jointCount(), storage);
+  if (evaluation.storage() != storage) {
+    state.SkipWithError(("storage not available: " +
+                         evaluation.storageReason())
+                            .c_str());
+    return;
+  }
+  // The points stay on the device, as the skinning kernel leaves them.
+  std::vector<cl::Buffer> points;
+  for (const Matrix3Xf& p : frames.positions)
+    points.emplace_back(context()->context(),
+                        CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                        p.size() * sizeof(float),
+                        const_cast<float*>(p.data()));
+  double kernel = 0, upload = 0;
+  size_t frame = 0;
+  for (auto _ : state) {
+    const size_t f = frame % frames.poses.size();
+    evaluation.evaluate(frames.poses[f], points[f], rig.mesh.vertexCount());
+    kernel += evaluation.lastKernelMs();
+    upload += evaluation.lastUploadMs();
+    ++frame;
+  }
+  const double n = static_cast<double>(std::max<size_t>(frame, 1));
+  state.counters["points"] = rig.mesh.vertexCount();
+  state.counters["fields"] = fields.grids.fieldCount();
+  state.counters["kernel_ms"] = kernel / n;
+  state.counters["pose_upload_ms"] = upload / n;
+  state.counters["field_MiB"] = evaluation.fieldBytes() / (1024.0 * 1024.0);
+  state.SetLabel(context()->info().describe());
+}
+
 }  // namespace
 
 void registerFieldBenchmarks() {
@@ -65,6 +162,21 @@ void registerFieldBenchmarks() {
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
     }
+  }
+  for (const Model& model : models()) {
+    if (!available(model)) continue;
+    benchmark::RegisterBenchmark(("FieldEval/reference/" + model.name).c_str(),
+                                 evaluateReference, model)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+    for (FieldStorage storage : {FieldStorage::kBuffer, FieldStorage::kImage})
+      benchmark::RegisterBenchmark(
+          ("FieldEval/opencl-" + std::string(fieldStorageName(storage)) + "/" +
+           model.name)
+              .c_str(),
+          evaluateOpenCl, model, storage)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
   }
 }
 
