@@ -5,15 +5,15 @@
     python3 bench/benchmarks_to_markdown.py bench.json > tables.md
 
 Each row pairs the OpenCL and CPU-reference runs of one model and method from
-the same run, so the speed-up is a ratio measured in one process.
+the same run, so the speed-up is a ratio measured in one process. Tables are
+printed for the families present: Frame (skinning), FieldBuild (offline
+fields) and FieldEval (field evaluation).
 """
 import json
 import sys
 
 
-def main(path):
-    with open(path) as f:
-        data = json.load(f)
+def frame_table(data):
     runs = {}
     for b in data["benchmarks"]:
         # Frame/<backend>/<model>/<method>/real_time
@@ -22,11 +22,8 @@ def main(path):
             continue
         backend, model, method = parts[1], parts[2], parts[3]
         runs.setdefault((model, method), {})[backend] = b
-    ctx = data.get("context", {})
-    device = next((b.get("label", "") for b in data["benchmarks"]
-                   if "/opencl/" in b["name"]), "")
-    print(f"Run of {ctx.get('date', '?')} on {ctx.get('num_cpus', '?')} CPUs; "
-          f"OpenCL device: {device or 'none'}.\n")
+    if not runs:
+        return
     print("| model | vertices | method | OpenCL ms/frame | reference ms/frame "
           "| OpenCL speed-up | skinning kernel ms | normals kernel ms |")
     print("|---|---:|---|---:|---:|---:|---:|---:|")
@@ -38,6 +35,75 @@ def main(path):
         print(f"| {model} | {int(cl['vertices'])} | {method} | {cl_ms:.3f} | "
               f"{ref_ms:.3f} | {ref_ms / cl_ms:.2f}x | "
               f"{cl['skinning_ms']:.3f} | {cl['normals_ms']:.3f} |")
+    print()
+
+
+def field_build_table(data):
+    runs = {}
+    for b in data["benchmarks"]:
+        # FieldBuild/<model>/threads:<n>/real_time
+        parts = b["name"].split("/")
+        if len(parts) < 3 or parts[0] != "FieldBuild":
+            continue
+        runs.setdefault(parts[1], {})[parts[2].split(":")[1]] = b
+    if not runs:
+        return
+    print("| model | vertices | joints | fields | field MiB | 1 thread ms "
+          "| all threads ms | speed-up | sampling ms | fitting ms | baking ms "
+          "| iso ms |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for model, by_threads in runs.items():
+        one = by_threads.get("1")
+        many = max(by_threads.items(), key=lambda kv: int(kv[0]))[1]
+        if not one:
+            continue
+        print(f"| {model} | {int(one['vertices'])} | {int(one['joints'])} | "
+              f"{int(one['fields'])} | {one['field_MiB']:.1f} | "
+              f"{one['real_time']:.1f} | {many['real_time']:.1f} | "
+              f"{one['real_time'] / many['real_time']:.2f}x | "
+              f"{many['sampling_ms']:.1f} | {many['fitting_ms']:.1f} | "
+              f"{many['baking_ms']:.1f} | {many['iso_ms']:.1f} |")
+    print()
+
+
+def field_eval_table(data):
+    runs = {}
+    for b in data["benchmarks"]:
+        # FieldEval/<backend>/<model>/real_time
+        parts = b["name"].split("/")
+        if len(parts) < 3 or parts[0] != "FieldEval" or b.get("error_occurred"):
+            continue
+        runs.setdefault(parts[2], {})[parts[1]] = b
+    if not runs:
+        return
+    print("| model | points | fields | reference ms | OpenCL buffer ms "
+          "| OpenCL image ms | buffer speed-up | image time / buffer time |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for model, backends in runs.items():
+        ref = backends.get("reference")
+        buf = backends.get("opencl-buffer")
+        img = backends.get("opencl-image")
+        if not ref or not buf:
+            continue
+        img_ms = f"{img['real_time']:.3f}" if img else "n/a"
+        ratio = f"{img['real_time'] / buf['real_time']:.2f}x" if img else "n/a"
+        print(f"| {model} | {int(ref['points'])} | {int(ref['fields'])} | "
+              f"{ref['real_time']:.3f} | {buf['real_time']:.3f} | {img_ms} | "
+              f"{ref['real_time'] / buf['real_time']:.2f}x | {ratio} |")
+    print()
+
+
+def main(path):
+    with open(path) as f:
+        data = json.load(f)
+    ctx = data.get("context", {})
+    device = next((b.get("label", "") for b in data["benchmarks"]
+                   if "/opencl" in b["name"]), "")
+    print(f"Run of {ctx.get('date', '?')} on {ctx.get('num_cpus', '?')} CPUs; "
+          f"OpenCL device: {device or 'none'}.\n")
+    frame_table(data)
+    field_build_table(data)
+    field_eval_table(data)
 
 
 if __name__ == "__main__":
