@@ -48,35 +48,56 @@ FieldGrid bakeField(const BoneField& field, int resolution) {
   const size_t n = static_cast<size_t>(resolution);
   grid.nodes.assign(4 * n * n * n, 0.f);
 
-  // Evaluate in the HRBF's normalised frame, straight from its coefficients.
+  // Evaluate in the HRBF's normalised frame, straight from its coefficients,
+  // laid out as plain arrays so that the loop over centres vectorizes.
   const Hrbf& h = field.hrbf;
   const int m = h.centreCount();
-  const std::vector<Eigen::Vector3d>& c = h.normalisedCentres();
-  const std::vector<double>& lambda = h.lambdas();
-  const std::vector<Eigen::Vector3d>& beta = h.betas();
+  std::vector<double> cx(m), cy(m), cz(m), lambda(m), bx(m), by(m), bz(m);
+  for (int q = 0; q < m; ++q) {
+    cx[q] = h.normalisedCentres()[q].x();
+    cy[q] = h.normalisedCentres()[q].y();
+    cz[q] = h.normalisedCentres()[q].z();
+    lambda[q] = h.lambdas()[q];
+    bx[q] = h.betas()[q].x();
+    by[q] = h.betas()[q].y();
+    bz[q] = h.betas()[q].z();
+  }
   const Eigen::Matrix3d rotation = field.bone_to_model.linear();
   const Eigen::Vector3d box_min = field.support_box.min();
   const Eigen::Vector3d step =
       field.support_box.sizes() / static_cast<double>(resolution - 1);
   const double scale = h.scale();
+  const double bone_length = field.segment.length();
   for (size_t k = 0; k < n; ++k) {
     for (size_t j = 0; j < n; ++j) {
       for (size_t i = 0; i < n; ++i) {
         const Eigen::Vector3d local =
             box_min + Eigen::Vector3d(i * step.x(), j * step.y(), k * step.z());
+        // Beyond R + r from the bone the guard makes f = 0 and grad f = 0:
+        // no need for the HRBF there (the box's corners and edges).
+        const Eigen::Vector3d from_bone(
+            local.x() - std::clamp(local.x(), 0.0, bone_length), local.y(),
+            local.z());
+        if (from_bone.norm() - field.guard_radius >= field.radius) continue;
         const Eigen::Vector3d x = field.bone_to_model * local;
         const Eigen::Vector3d u = (x - h.origin()) / scale;
         double d = h.linear().dot(u) + h.constant();
-        Eigen::Vector3d g = h.linear();
+        double gx = h.linear().x(), gy = h.linear().y(), gz = h.linear().z();
         for (int q = 0; q < m; ++q) {
-          const Eigen::Vector3d v = u - c[q];
-          const double r = v.norm();
-          const double vb = v.dot(beta[q]);
-          d += lambda[q] * r * r * r + 3.0 * r * vb;
-          g += 3.0 * r * (lambda[q] * v + beta[q]);
-          if (r > 0) g += (3.0 * vb / r) * v;
+          const double vx = u.x() - cx[q], vy = u.y() - cy[q],
+                       vz = u.z() - cz[q];
+          const double r = std::sqrt(vx * vx + vy * vy + vz * vz);
+          const double vb = vx * bx[q] + vy * by[q] + vz * bz[q];
+          // lambda phi + beta . grad phi, and lambda grad phi + H beta; at
+          // r = 0 the last term is 0/0 -> 0 (vb is 0 there too).
+          const double w = 3.0 * vb / std::max(r, 1e-300);
+          d += r * (lambda[q] * r * r + 3.0 * vb);
+          gx += 3.0 * r * (lambda[q] * vx + bx[q]) + w * vx;
+          gy += 3.0 * r * (lambda[q] * vy + by[q]) + w * vy;
+          gz += 3.0 * r * (lambda[q] * vz + bz[q]) + w * vz;
         }
         d *= scale;
+        Eigen::Vector3d g(gx, gy, gz);
         field.guard(x, d, g);
         const double f = reparameterize(d, field.radius);
         const Eigen::Vector3d grad =
