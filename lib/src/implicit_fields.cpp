@@ -25,7 +25,10 @@ double since(std::chrono::steady_clock::time_point start) {
 // by an item is rethrown after all threads stop.
 void parallelFor(int count, int threads, const std::function<void(int)>& work,
                  const std::function<void(float)>& progress) {
-  if (count <= 0) return;
+  if (count <= 0) {
+    if (progress) progress(1.f);
+    return;
+  }
   threads = std::max(1, std::min(threads, count));
   std::atomic<int> next{0};
   std::mutex mutex;
@@ -49,11 +52,12 @@ void parallelFor(int count, int threads, const std::function<void(int)>& work,
       finished.notify_one();
     }
   };
+  if (progress) progress(0.f);
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
   {
     std::unique_lock<std::mutex> lock(mutex);
-    int reported = -1;
+    int reported = 0;
     while (done < count) {
       finished.wait(lock, [&] { return done != reported; });
       reported = done;
@@ -66,6 +70,7 @@ void parallelFor(int count, int threads, const std::function<void(int)>& work,
   }
   for (auto& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
+  if (progress) progress(1.f);
 }
 
 // The part's vertices with their geometric normals, as samples: the last
@@ -106,9 +111,10 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
 
 ImplicitFields buildImplicitFields(const Rig& rig,
                                    const ImplicitFieldsOptions& options) {
-  if (options.grid_resolution < 2 || options.grid_resolution > 512)
+  // 256^3 float4 is already 256 MiB per bone.
+  if (options.grid_resolution < 2 || options.grid_resolution > 256)
     throw Error(ErrorCode::kInvalidArgument,
-                "buildImplicitFields: grid_resolution must be in [2, 512], got " +
+                "buildImplicitFields: grid_resolution must be in [2, 256], got " +
                     std::to_string(options.grid_resolution));
   if (options.sampling.target_samples < 1)
     throw Error(ErrorCode::kInvalidArgument,

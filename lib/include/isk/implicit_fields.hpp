@@ -24,7 +24,7 @@ namespace isk {
 
 struct ImplicitFieldsOptions {
   BoneSamplingOptions sampling;
-  int grid_resolution = 32;  // nodes per axis of each baked field
+  int grid_resolution = 32;  // nodes per axis of each baked field, 2..256
   FieldComposition composition = FieldComposition::kUnion;
   int threads = 0;  // fitting and baking threads; 0: all hardware threads
   // Called after sampling, before fitting, with the samples of every bone
