@@ -116,9 +116,8 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
   ClFieldEvaluation evaluation(context(), fields.grids,
                                rig.skeleton.jointCount(), storage);
   if (evaluation.storage() != storage) {
-    state.SkipWithError(("storage not available: " +
-                         evaluation.storageReason())
-                            .c_str());
+    state.SkipWithError(
+        ("storage not available: " + evaluation.storageReason()).c_str());
     return;
   }
   // The points stay on the device, as the skinning kernel leaves them.
@@ -126,8 +125,7 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
   for (const Matrix3Xf& p : frames.positions)
     points.emplace_back(context()->context(),
                         CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                        p.size() * sizeof(float),
-                        const_cast<float*>(p.data()));
+                        p.size() * sizeof(float), const_cast<float*>(p.data()));
   double kernel = 0, upload = 0;
   size_t frame = 0;
   for (auto _ : state) {
@@ -149,8 +147,8 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
 }  // namespace
 
 void registerFieldBenchmarks() {
-  const int all = static_cast<int>(
-      std::max(1u, std::thread::hardware_concurrency()));
+  const int all =
+      static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const Model& model : models()) {
     if (!available(model) || model.subdivision_levels > 0) continue;
     for (int threads : {1, all}) {

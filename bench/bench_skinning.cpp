@@ -22,7 +22,7 @@ void skinOpenCl(benchmark::State& state, const Model& model,
                 SkinningMethod method) {
   const Rig& rig = rigOf(model);
   ClSkinning skinning(context(), rig.mesh, rig.weights,
-                           rig.skeleton.jointCount());
+                      rig.skeleton.jointCount());
   Matrix3Xf positions, normals;
   double upload = 0, skin = 0, normal = 0, readback = 0;
   int64_t frame = 0;
@@ -68,8 +68,8 @@ void skinReference(benchmark::State& state, const Model& model,
 void registerSkinningBenchmarks() {
   for (const Model& model : models()) {
     if (!available(model)) continue;
-    for (auto method : {SkinningMethod::kLinearBlend,
-                        SkinningMethod::kDualQuaternion}) {
+    for (auto method :
+         {SkinningMethod::kLinearBlend, SkinningMethod::kDualQuaternion}) {
       const std::string suffix = model.name + "/" + skinningMethodName(method);
       benchmark::RegisterBenchmark(("Frame/opencl/" + suffix).c_str(),
                                    skinOpenCl, model, method)
@@ -83,4 +83,4 @@ void registerSkinningBenchmarks() {
   }
 }
 
-}  // namespace bench
+}  // namespace isk::bench

@@ -29,11 +29,9 @@ const Rig& rigOf(const Model& model) {
   static std::map<std::string, std::unique_ptr<Rig>> cache;
   auto& slot = cache[model.name];
   if (!slot) {
-    Rig rig = model.file.empty()
-                       ? makeBuiltinRig("arm")
-                       : importRig(samples::dataFile(model.file));
-    slot = std::make_unique<Rig>(
-        subdivideRig(rig, model.subdivision_levels));
+    Rig rig = model.file.empty() ? makeBuiltinRig("arm")
+                                 : importRig(samples::dataFile(model.file));
+    slot = std::make_unique<Rig>(subdivideRig(rig, model.subdivision_levels));
   }
   return *slot;
 }

@@ -24,17 +24,16 @@ using test::rigNamed;
 
 // Runs `check` on the procedural rigs, or on the assets (skipping with a
 // message naming the folder when it is absent).
-#define FOR_PROCEDURAL_RIGS(check) \
-  for (const std::string& name : builtinRigNames()) {      \
-    SCOPED_TRACE(name);                                    \
-    check(name);                                           \
+#define FOR_PROCEDURAL_RIGS(check)                    \
+  for (const std::string& name : builtinRigNames()) { \
+    SCOPED_TRACE(name);                               \
+    check(name);                                      \
   }
-#define FOR_ASSETS(check, what)                            \
-  if (!test::haveAssets())                                 \
-    GTEST_SKIP() << test::missingAssetsMessage(what);      \
-  for (const std::string& name : test::assetNames()) {     \
-    SCOPED_TRACE(name);                                    \
-    check(name);                                           \
+#define FOR_ASSETS(check, what)                                              \
+  if (!test::haveAssets()) GTEST_SKIP() << test::missingAssetsMessage(what); \
+  for (const std::string& name : test::assetNames()) {                       \
+    SCOPED_TRACE(name);                                                      \
+    check(name);                                                             \
   }
 
 Eigen::Vector3d vertex(const Rig& rig, int v) {
@@ -171,8 +170,9 @@ void checkInterpolation(const std::string& name) {
     // f is 0.5 on the samples, 0 beyond R + r.
     for (int k = 0; k < all.size(); ++k)
       ASSERT_NEAR(field.value(all.positions[k]), 0.5, 1e-7) << "sample " << k;
-    const Eigen::Vector3d far = field.bone_to_model *
-                                Eigen::Vector3d(0, 1.01 * (field.guard_radius + field.radius), 0);
+    const Eigen::Vector3d far =
+        field.bone_to_model *
+        Eigen::Vector3d(0, 1.01 * (field.guard_radius + field.radius), 0);
     EXPECT_EQ(field.value(far), 0.0);
   }
 }
@@ -187,10 +187,10 @@ TEST(ImplicitFields, HrbfInterpolatesItsDataOnAssets) {
 
 // The grid against the analytic field at random points of each support box.
 // Stated error at 32^3 (trilinear between analytic nodes): value within 0.1
-// everywhere, 0.006 on average per field and 0.003 over a rig; gradient direction within 10 degrees at
-// 95% of a rig's points where |grad f| is above 20% of its field's largest
-// value (within 30 degrees per field: thin parts such as thumbs span few
-// cells across).
+// everywhere, 0.006 on average per field and 0.003 over a rig; gradient
+// direction within 10 degrees at 95% of a rig's points where |grad f| is above
+// 20% of its field's largest value (within 30 degrees per field: thin parts
+// such as thumbs span few cells across).
 void checkBaking(const std::string& name) {
   const Rig& rig = rigNamed(name);
   const ImplicitFields& fields = implicitFieldsOf(name);
@@ -207,10 +207,11 @@ void checkBaking(const std::string& name) {
     ASSERT_EQ(grid.bytes(), 32u * 32 * 32 * 4 * sizeof(float));
     float largest_gradient = 0;
     for (size_t q = 0; q < grid.nodes.size(); q += 4)
-      largest_gradient = std::max(
-          largest_gradient,
-          Eigen::Vector3f(grid.nodes[q + 1], grid.nodes[q + 2], grid.nodes[q + 3])
-              .norm());
+      largest_gradient =
+          std::max(largest_gradient,
+                   Eigen::Vector3f(grid.nodes[q + 1], grid.nodes[q + 2],
+                                   grid.nodes[q + 3])
+                       .norm());
     double worst = 0, sum = 0;
     std::vector<double> angles;
     const int count = 2000;
@@ -229,9 +230,9 @@ void checkBaking(const std::string& name) {
       if (gradient.norm() > 0.2 * largest_gradient) {
         const Eigen::Vector3d baked_gradient =
             field.bone_to_model.linear() * baked.tail<3>().cast<double>();
-        angles.push_back(std::acos(std::clamp(
-                             gradient.normalized().dot(baked_gradient.normalized()),
-                             -1.0, 1.0)) *
+        angles.push_back(std::acos(std::clamp(gradient.normalized().dot(
+                                                  baked_gradient.normalized()),
+                                              -1.0, 1.0)) *
                          180 / M_PI);
       }
     }
@@ -245,9 +246,9 @@ void checkBaking(const std::string& name) {
     }
     all_angles.insert(all_angles.end(), angles.begin(), angles.end());
     // Outside the box: exactly zero.
-    const Eigen::Vector3f outside =
-        grid.box_max + Eigen::Vector3f::Constant(1e-3f) +
-        0.01f * (grid.box_max - grid.box_min);
+    const Eigen::Vector3f outside = grid.box_max +
+                                    Eigen::Vector3f::Constant(1e-3f) +
+                                    0.01f * (grid.box_max - grid.box_min);
     EXPECT_EQ(grid.sampleLocal(outside), Eigen::Vector4f::Zero());
   }
   EXPECT_LT(rig_error / rig_count, 0.003);
@@ -264,7 +265,8 @@ TEST(ImplicitFields, BakedGridMatchesTheAnalyticFieldOnAssets) {
   FOR_ASSETS(checkBaking, "the baking checks on assets");
 }
 
-// --- the 0.5 iso against the mesh part -----------------------------------------
+// --- the 0.5 iso against the mesh part
+// -----------------------------------------
 
 // Distance from a vertex to its own field's 0.5 iso, searched along the
 // vertex normal (in or out, whichever way f says) up to 2r.
@@ -346,7 +348,8 @@ void checkRigidMotion(const std::string& name) {
   if (!rig.clips.empty()) {
     const AnimationClip& clip = rig.clips.front();
     posed = skinningTransforms(
-        rig.skeleton, clip.sampleLocal(rig.skeleton, clip.start + 0.6 * clip.duration));
+        rig.skeleton,
+        clip.sampleLocal(rig.skeleton, clip.start + 0.6 * clip.duration));
   } else {
     // No clip: turn and move every joint its own way.
     for (int j = 0; j < rig.skeleton.jointCount(); ++j)
@@ -354,7 +357,8 @@ void checkRigidMotion(const std::string& name) {
                       Eigen::AngleAxisf(0.3f + 0.1f * j,
                                         Eigen::Vector3f(1, 2, 3).normalized()));
   }
-  const TransformList rest(rig.skeleton.jointCount(), Eigen::Affine3f::Identity());
+  const TransformList rest(rig.skeleton.jointCount(),
+                           Eigen::Affine3f::Identity());
   std::mt19937 random(3);
   std::uniform_real_distribution<float> unit(0, 1);
   const int per_field = 200;
@@ -365,8 +369,9 @@ void checkRigidMotion(const std::string& name) {
     const FieldGrid& grid = fields.grids.grids[i];
     for (int s = 0; s < per_field; ++s) {
       const Eigen::Vector3f local =
-          grid.box_min + Eigen::Vector3f(unit(random), unit(random), unit(random))
-                             .cwiseProduct(grid.box_max - grid.box_min);
+          grid.box_min +
+          Eigen::Vector3f(unit(random), unit(random), unit(random))
+              .cwiseProduct(grid.box_max - grid.box_min);
       const Eigen::Vector3f x = grid.bone_to_model * local;
       rest_points.row(i * per_field + s) = x.transpose();
       posed_points.row(i * per_field + s) = (posed[grid.joint] * x).transpose();
@@ -417,7 +422,8 @@ void checkIsoValues(const std::string& name) {
   ASSERT_EQ(static_cast<int>(fields.iso_values.size()), rig.mesh.vertexCount());
   // The union at the rest pose, evaluated independently.
   Matrix4Xf composed;
-  const TransformList rest(rig.skeleton.jointCount(), Eigen::Affine3f::Identity());
+  const TransformList rest(rig.skeleton.jointCount(),
+                           Eigen::Affine3f::Identity());
   FieldEvaluationJob job;
   job.fields = &fields.grids;
   job.skinning = &rest;
@@ -445,7 +451,8 @@ TEST(ImplicitFields, IsoValuesOnAssets) {
   FOR_ASSETS(checkIsoValues, "the iso-value checks on assets");
 }
 
-// --- builder behaviour ---------------------------------------------------------
+// --- builder behaviour
+// ---------------------------------------------------------
 
 TEST(ImplicitFields, ReportsProgressTimesAndIsDeterministic) {
   std::vector<std::string> stages;
@@ -458,8 +465,9 @@ TEST(ImplicitFields, ReportsProgressTimesAndIsDeterministic) {
   };
   const Rig& rig = rigNamed("arm");
   const ImplicitFields a = buildImplicitFields(rig, options);
-  EXPECT_EQ(stages, (std::vector<std::string>{"partition", "sampling", "fitting",
-                                              "baking", "iso values"}));
+  EXPECT_EQ(stages,
+            (std::vector<std::string>{"partition", "sampling", "fitting",
+                                      "baking", "iso values"}));
   EXPECT_GT(a.times.total(), 0);
   options.progress = nullptr;
   options.threads = 1;
@@ -480,16 +488,17 @@ TEST(ImplicitFields, EditedSamplesAreWhatIsFitted) {
   };
   const ImplicitFields fields = buildImplicitFields(rig, options);
   EXPECT_NEAR(fields.fields[0].hrbf.value(extra_position), 0.0, 1e-7);
-  EXPECT_NEAR(
-      (fields.fields[0].hrbf.gradient(extra_position) - Eigen::Vector3d::UnitY())
-          .norm(),
-      0.0, 1e-6);
+  EXPECT_NEAR((fields.fields[0].hrbf.gradient(extra_position) -
+               Eigen::Vector3d::UnitY())
+                  .norm(),
+              0.0, 1e-6);
 }
 
 TEST(ImplicitFields, ResolutionIsAParameter) {
   ImplicitFieldsOptions options;
   options.grid_resolution = 16;
-  const ImplicitFields fields = buildImplicitFields(rigNamed("cylinder"), options);
+  const ImplicitFields fields =
+      buildImplicitFields(rigNamed("cylinder"), options);
   for (const FieldGrid& grid : fields.grids.grids) {
     EXPECT_EQ(grid.resolution, 16);
     EXPECT_EQ(grid.bytes(), 16u * 16 * 16 * 16);
@@ -521,7 +530,8 @@ Rig cylinderWithMovedWeights(int from, int to, int keep) {
       ++kept;
       continue;
     }
-    for (uint32_t i = rig.weights.offsets[v]; i < rig.weights.offsets[v + 1]; ++i) {
+    for (uint32_t i = rig.weights.offsets[v]; i < rig.weights.offsets[v + 1];
+         ++i) {
       const int j = rig.weights.joints[i];
       lists[v].push_back({j == from ? to : j, rig.weights.weights[i]});
     }
@@ -605,7 +615,8 @@ TEST(ImplicitFields, ZeroLengthBoneIsFittedAroundAPoint) {
   EXPECT_EQ(fields.samples[0].closure.size(), 0);
   EXPECT_EQ(fields.samples[0].culled, 0);
   for (float iso : fields.iso_values) ASSERT_TRUE(std::isfinite(iso));
-  for (float value : fields.grids.grids[0].nodes) ASSERT_TRUE(std::isfinite(value));
+  for (float value : fields.grids.grids[0].nodes)
+    ASSERT_TRUE(std::isfinite(value));
   EXPECT_GT(fields.fields[0].value(Eigen::Vector3d(4, 0, 0)), 0.5);
 }
 

@@ -27,7 +27,8 @@ Eigen::Isometry3d boneFrame(const BoneSegment& segment) {
 
 }  // namespace
 
-BoneField fitBoneField(const Skeleton& skeleton, const Matrix3Xf& mesh_positions,
+BoneField fitBoneField(const Skeleton& skeleton,
+                       const Matrix3Xf& mesh_positions,
                        const BonePartition& partition,
                        const BoneSamples& samples,
                        std::vector<std::string>* warnings) {
@@ -52,17 +53,20 @@ BoneField fitBoneField(const Skeleton& skeleton, const Matrix3Xf& mesh_positions
     field.radius = std::max(field.radius, field.segment.distance(p));
   if (!(field.radius > 0))
     throw Error(ErrorCode::kInvalidArgument,
-                what + ": every sample lies on the bone; the field has no "
-                       "support");
+                what +
+                    ": every sample lies on the bone; the field has no "
+                    "support");
   field.bone_to_model = boneFrame(field.segment);
   field.guard_radius = field.radius;
   for (const auto& p : all.positions)
-    field.guard_radius = std::max(field.guard_radius, field.segment.distance(p));
+    field.guard_radius =
+        std::max(field.guard_radius, field.segment.distance(p));
   if (joint < static_cast<int>(partition.part_vertices.size()))
     for (int v : partition.part_vertices[joint])
-      field.guard_radius = std::max(
-          field.guard_radius,
-          field.segment.distance(mesh_positions.row(v).transpose().cast<double>()));
+      field.guard_radius =
+          std::max(field.guard_radius,
+                   field.segment.distance(
+                       mesh_positions.row(v).transpose().cast<double>()));
 
   // The guard makes f vanish beyond R + r from the segment (x from 0 to L
   // in the bone frame).

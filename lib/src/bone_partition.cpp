@@ -113,7 +113,8 @@ BonePartition partitionMesh(const Rig& rig) {
     // nearest on average to the part's vertices.
     const int parent_joint = skeleton.joints[j].parent;
     Eigen::Vector3d incoming = Eigen::Vector3d::Zero();
-    if (parent_joint >= 0) incoming = s.start - jointPosition(globals, parent_joint);
+    if (parent_joint >= 0)
+      incoming = s.start - jointPosition(globals, parent_joint);
     const bool follow_chain = incoming.norm() > min_length;
     double best_fit = std::numeric_limits<double>::infinity();
     for (int c : children[j]) {
@@ -121,9 +122,9 @@ BonePartition partitionMesh(const Rig& rig) {
       candidate.end = jointPosition(globals, c);
       candidate.end_joint = c;
       if (candidate.length() <= min_length) continue;
-      const double fit =
-          follow_chain ? -candidate.direction().dot(incoming.normalized())
-                       : meanDistance(candidate, mesh, part);
+      const double fit = follow_chain
+                             ? -candidate.direction().dot(incoming.normalized())
+                             : meanDistance(candidate, mesh, part);
       if (fit < best_fit) {
         best_fit = fit;
         s.end = candidate.end;

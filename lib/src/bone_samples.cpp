@@ -73,8 +73,7 @@ BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
   for (int i = 0; i < candidates; ++i) {
     const double pick = random.uniform() * area;
     const size_t index = std::min<size_t>(
-        std::lower_bound(cumulative_area.begin(), cumulative_area.end(),
-                         pick) -
+        std::lower_bound(cumulative_area.begin(), cumulative_area.end(), pick) -
             cumulative_area.begin(),
         triangles.size() - 1);
     const int t = triangles[index];

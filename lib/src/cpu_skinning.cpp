@@ -4,18 +4,9 @@
 #include <string>
 
 #include "isk/error.hpp"
+#include "stopwatch.hpp"
 
 namespace isk {
-namespace {
-
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
-}
-
-}  // namespace
-
 CpuSkinning::CpuSkinning(const Mesh& mesh, const SkinWeights& weights,
                          int joint_count)
     : rest_positions_(mesh.positions),
@@ -48,7 +39,7 @@ void CpuSkinning::run(SkinningMethod method, const TransformList& skinning,
   job.out_normals = recompute_normals ? &skinned_normals_ : &normals_;
   auto start = std::chrono::steady_clock::now();
   job.run();
-  times_.skinning_ms = millisecondsSince(start);
+  times_.skinning_ms = detail::millisecondsSince(start);
   if (!recompute_normals) return;
   VertexNormalsJob normals;
   normals.positions = &positions_;
@@ -58,7 +49,7 @@ void CpuSkinning::run(SkinningMethod method, const TransformList& skinning,
   normals.out_normals = &normals_;
   start = std::chrono::steady_clock::now();
   normals.run();
-  times_.normals_ms = millisecondsSince(start);
+  times_.normals_ms = detail::millisecondsSince(start);
 }
 
 }  // namespace isk

@@ -30,13 +30,14 @@ Validation FieldEvaluationJob::validate() const {
   if (!fields) return Validation::fail("no field set");
   if (!skinning) return Validation::fail("no skinning transforms");
   if (!points) return Validation::fail("no points");
-  if (!out_composed) return Validation::fail("no output for the composed field");
+  if (!out_composed)
+    return Validation::fail("no output for the composed field");
   for (size_t i = 0; i < fields->grids.size(); ++i) {
     const FieldGrid& g = fields->grids[i];
     if (g.joint < 0 || g.joint >= static_cast<int>(skinning->size()))
-      return Validation::fail("field " + std::to_string(i) + " belongs to joint " +
-                              std::to_string(g.joint) + " but only " +
-                              std::to_string(skinning->size()) +
+      return Validation::fail("field " + std::to_string(i) +
+                              " belongs to joint " + std::to_string(g.joint) +
+                              " but only " + std::to_string(skinning->size()) +
                               " skinning transforms were given");
     const size_t n = static_cast<size_t>(g.resolution);
     if (g.resolution < 2 || g.nodes.size() != 4 * n * n * n)
@@ -52,7 +53,8 @@ Validation FieldEvaluationJob::validate() const {
 
 void FieldEvaluationJob::run() const {
   validate().throwIfFailed("FieldEvaluationJob");
-  const std::vector<Eigen::Affine3f> to_bone = fieldTransforms(*fields, *skinning);
+  const std::vector<Eigen::Affine3f> to_bone =
+      fieldTransforms(*fields, *skinning);
   const int field_count = fields->fieldCount();
   const int point_count = static_cast<int>(points->rows());
   out_composed->resize(point_count, 4);
@@ -83,7 +85,8 @@ std::vector<float> computeIsoValues(const FieldGridSet& fields,
                                     FieldComposition composition,
                                     std::vector<int>* outside) {
   int joint_count = 0;
-  for (const auto& g : fields.grids) joint_count = std::max(joint_count, g.joint + 1);
+  for (const auto& g : fields.grids)
+    joint_count = std::max(joint_count, g.joint + 1);
   const TransformList identity(joint_count, Eigen::Affine3f::Identity());
   Matrix4Xf composed;
   FieldEvaluationJob job;

@@ -8,8 +8,7 @@
 namespace isk {
 
 Eigen::Vector4f FieldGrid::sampleLocal(const Eigen::Vector3f& local) const {
-  const Eigen::Vector3f u =
-      (local - box_min).cwiseQuotient(spacing());
+  const Eigen::Vector3f u = (local - box_min).cwiseQuotient(spacing());
   const float last = static_cast<float>(resolution - 1);
   if (!(u.x() >= 0 && u.y() >= 0 && u.z() >= 0 && u.x() <= last &&
         u.y() <= last && u.z() <= last))
@@ -25,10 +24,14 @@ Eigen::Vector4f FieldGrid::sampleLocal(const Eigen::Vector3f& local) const {
     const size_t index = (i[0] + dx) + n * ((i[1] + dy) + n * (i[2] + dz));
     return Eigen::Map<const Eigen::Vector4f>(&nodes[4 * index]);
   };
-  const Eigen::Vector4f x00 = node(0, 0, 0) + t[0] * (node(1, 0, 0) - node(0, 0, 0));
-  const Eigen::Vector4f x10 = node(0, 1, 0) + t[0] * (node(1, 1, 0) - node(0, 1, 0));
-  const Eigen::Vector4f x01 = node(0, 0, 1) + t[0] * (node(1, 0, 1) - node(0, 0, 1));
-  const Eigen::Vector4f x11 = node(0, 1, 1) + t[0] * (node(1, 1, 1) - node(0, 1, 1));
+  const Eigen::Vector4f x00 =
+      node(0, 0, 0) + t[0] * (node(1, 0, 0) - node(0, 0, 0));
+  const Eigen::Vector4f x10 =
+      node(0, 1, 0) + t[0] * (node(1, 1, 0) - node(0, 1, 0));
+  const Eigen::Vector4f x01 =
+      node(0, 0, 1) + t[0] * (node(1, 0, 1) - node(0, 0, 1));
+  const Eigen::Vector4f x11 =
+      node(0, 1, 1) + t[0] * (node(1, 1, 1) - node(0, 1, 1));
   const Eigen::Vector4f y0 = x00 + t[1] * (x10 - x00);
   const Eigen::Vector4f y1 = x01 + t[1] * (x11 - x01);
   return y0 + t[2] * (y1 - y0);
@@ -100,9 +103,8 @@ FieldGrid bakeField(const BoneField& field, int resolution) {
         Eigen::Vector3d g(gx, gy, gz);
         field.guard(x, d, g);
         const double f = reparameterize(d, field.radius);
-        const Eigen::Vector3d grad =
-            reparameterizeDerivative(d, field.radius) *
-            (rotation.transpose() * g);
+        const Eigen::Vector3d grad = reparameterizeDerivative(d, field.radius) *
+                                     (rotation.transpose() * g);
         float* out = &grid.nodes[4 * (i + n * (j + n * k))];
         out[0] = static_cast<float>(f);
         out[1] = static_cast<float>(grad.x());

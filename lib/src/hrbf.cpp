@@ -76,9 +76,9 @@ Hrbf Hrbf::fit(const HermiteSamples& samples, const std::string& what,
   if (m < 4) {
     std::ostringstream msg;
     msg << what << ": " << m << " distinct samples"
-        << (merged ? " (after merging " + std::to_string(merged) +
-                         " duplicates)"
-                   : std::string())
+        << (merged
+                ? " (after merging " + std::to_string(merged) + " duplicates)"
+                : std::string())
         << ", at least 4 are needed to fit an HRBF";
     throw Error(ErrorCode::kInvalidArgument, msg.str());
   }

@@ -2,23 +2,18 @@
 
 #include <array>
 #include <atomic>
-#include <map>
 #include <chrono>
 #include <condition_variable>
 #include <exception>
+#include <map>
 #include <mutex>
 #include <thread>
 
 #include "isk/error.hpp"
+#include "stopwatch.hpp"
 
 namespace isk {
 namespace {
-
-double since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
-}
 
 // Runs work(i) for i in [0, count) on `threads` threads; the calling thread
 // reports progress(done / count) as items finish. The first exception thrown
@@ -80,9 +75,12 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
   std::vector<Eigen::Vector3d> normals(mesh.vertexCount(),
                                        Eigen::Vector3d::Zero());
   for (int t : partition.part_triangles[joint]) {
-    const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(t, 0)).transpose().cast<double>();
-    const Eigen::Vector3d b = mesh.positions.row(mesh.triangles(t, 1)).transpose().cast<double>();
-    const Eigen::Vector3d c = mesh.positions.row(mesh.triangles(t, 2)).transpose().cast<double>();
+    const Eigen::Vector3d a =
+        mesh.positions.row(mesh.triangles(t, 0)).transpose().cast<double>();
+    const Eigen::Vector3d b =
+        mesh.positions.row(mesh.triangles(t, 1)).transpose().cast<double>();
+    const Eigen::Vector3d c =
+        mesh.positions.row(mesh.triangles(t, 2)).transpose().cast<double>();
     const Eigen::Vector3d n = (b - a).cross(c - a);
     for (int i = 0; i < 3; ++i) normals[mesh.triangles(t, i)] += n;
   }
@@ -93,8 +91,8 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
     Eigen::Vector3d n = normals[v];
     if (!(n.norm() > 0)) n = mesh.normals.row(v).transpose().cast<double>();
     if (!(n.norm() > 0) || !n.allFinite()) continue;
-    const std::array<float, 3> key = {mesh.positions(v, 0), mesh.positions(v, 1),
-                                      mesh.positions(v, 2)};
+    const std::array<float, 3> key = {
+        mesh.positions(v, 0), mesh.positions(v, 1), mesh.positions(v, 2)};
     auto it = by_position.emplace(key, Eigen::Vector3d::Zero()).first;
     it->second += n.normalized();
   }
@@ -113,9 +111,10 @@ ImplicitFields buildImplicitFields(const Rig& rig,
                                    const ImplicitFieldsOptions& options) {
   // 256^3 float4 is already 256 MiB per bone.
   if (options.grid_resolution < 2 || options.grid_resolution > 256)
-    throw Error(ErrorCode::kInvalidArgument,
-                "buildImplicitFields: grid_resolution must be in [2, 256], got " +
-                    std::to_string(options.grid_resolution));
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "buildImplicitFields: grid_resolution must be in [2, 256], got " +
+            std::to_string(options.grid_resolution));
   if (options.sampling.target_samples < 1)
     throw Error(ErrorCode::kInvalidArgument,
                 "buildImplicitFields: target_samples must be at least 1");
@@ -125,10 +124,9 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   auto report = [&](const char* stage, float fraction) {
     if (options.progress) options.progress(stage, fraction);
   };
-  const int threads =
-      options.threads > 0
-          ? options.threads
-          : std::max(1u, std::thread::hardware_concurrency());
+  const int threads = options.threads > 0
+                          ? options.threads
+                          : std::max(1u, std::thread::hardware_concurrency());
   ImplicitFields out;
   out.composition = options.composition;
 
@@ -137,7 +135,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   out.partition = partitionMesh(rig);
   out.warnings = out.partition.warnings;
   report("partition", 1);
-  out.times.partition_ms = since(start);
+  out.times.partition_ms = detail::millisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
   const Skeleton& skeleton = rig.skeleton;
@@ -151,8 +149,9 @@ ImplicitFields buildImplicitFields(const Rig& rig,
       BoneSamplingOptions uncut = options.sampling;
       uncut.culling_h = 0;
       samples[i] = sampleBonePart(rig.mesh, out.partition, j, uncut);
-      out.warnings.push_back(name + ": fewer than 4 samples after culling; "
-                                    "sampled without culling planes");
+      out.warnings.push_back(name +
+                             ": fewer than 4 samples after culling; "
+                             "sampled without culling planes");
     }
     if (samples[i].all().size() < 4) {
       samples[i].surface = vertexSamples(rig.mesh, out.partition, j);
@@ -164,7 +163,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
     report("sampling", static_cast<float>(i + 1) / joints.size());
   }
   if (options.edit_samples) options.edit_samples(samples);
-  out.times.sampling_ms = since(start);
+  out.times.sampling_ms = detail::millisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
   std::vector<BoneField> fields(samples.size());
@@ -174,8 +173,8 @@ ImplicitFields buildImplicitFields(const Rig& rig,
       static_cast<int>(samples.size()), threads,
       [&](int i) {
         try {
-          fields[i] = fitBoneField(skeleton, rig.mesh.positions, out.partition, samples[i],
-                                   &fit_warnings[i]);
+          fields[i] = fitBoneField(skeleton, rig.mesh.positions, out.partition,
+                                   samples[i], &fit_warnings[i]);
           fitted[i] = 1;
         } catch (const Error& e) {
           fit_warnings[i].push_back(std::string(e.what()) +
@@ -190,7 +189,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
     out.samples.push_back(std::move(samples[i]));
     out.fields.push_back(std::move(fields[i]));
   }
-  out.times.fitting_ms = since(start);
+  out.times.fitting_ms = detail::millisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
   out.grids.resolution = options.grid_resolution;
@@ -204,7 +203,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
   for (int i = 0; i < out.grids.fieldCount(); ++i)
     out.grids.field_of_joint[out.grids.grids[i].joint] = i;
-  out.times.baking_ms = since(start);
+  out.times.baking_ms = detail::millisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
   report("iso values", 0);
@@ -218,7 +217,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
         rig.mesh.describeVertex(out.outside_vertices.front()) +
         "); surface tracking leaves them where skinning puts them");
   report("iso values", 1);
-  out.times.iso_ms = since(start);
+  out.times.iso_ms = detail::millisecondsSince(start);
   return out;
 }
 

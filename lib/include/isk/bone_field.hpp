@@ -24,10 +24,9 @@
 // point bone, the model axes).
 #pragma once
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "isk/bone_partition.hpp"
 #include "isk/bone_samples.hpp"
@@ -38,7 +37,7 @@ namespace isk {
 
 struct BoneField {
   int joint = -1;
-  Hrbf hrbf;           // fitted in model space (bind pose)
+  Hrbf hrbf;                // fitted in model space (bind pose)
   double radius = 0;        // r of t_r
   double guard_radius = 0;  // R of the guard (above)
   BoneSegment segment;
@@ -63,7 +62,8 @@ struct BoneField {
 // #V by 3, whose part vertices set R). Throws isk::Error(kInvalidArgument) when
 // fewer than 4 samples remain ("joint 'NAME': 3 samples, at least 4 are
 // needed"); warnings name the joint.
-BoneField fitBoneField(const Skeleton& skeleton, const Matrix3Xf& mesh_positions,
+BoneField fitBoneField(const Skeleton& skeleton,
+                       const Matrix3Xf& mesh_positions,
                        const BonePartition& partition,
                        const BoneSamples& samples,
                        std::vector<std::string>* warnings = nullptr);

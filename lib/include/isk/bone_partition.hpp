@@ -28,11 +28,11 @@
 namespace isk {
 
 struct BoneSegment {
-  int joint = -1;                      // joint index in the skeleton
-  Eigen::Vector3d start = {0, 0, 0};   // b0: the joint, bind pose, model space
-  Eigen::Vector3d end = {0, 0, 0};     // b1
-  int end_joint = -1;                  // the child joint at b1, -1 if none
-  bool degenerate = false;             // b1 == b0 (see above)
+  int joint = -1;                     // joint index in the skeleton
+  Eigen::Vector3d start = {0, 0, 0};  // b0: the joint, bind pose, model space
+  Eigen::Vector3d end = {0, 0, 0};    // b1
+  int end_joint = -1;                 // the child joint at b1, -1 if none
+  bool degenerate = false;            // b1 == b0 (see above)
   // Whether the end touches another part (the parent's part at b0, the
   // child's part at b1): only those ends get a culling plane and a closure
   // point.

@@ -28,10 +28,10 @@
 namespace isk {
 
 struct BoneSamplingOptions {
-  int target_samples = 50;       // Poisson-disk target per part
-  double culling_h = 0.05;       // eq. (2)
-  bool closure_points = true;    // add closure points at touching ends
-  unsigned seed = 0x15c0ffee;    // mixed with the joint index
+  int target_samples = 50;     // Poisson-disk target per part
+  double culling_h = 0.05;     // eq. (2)
+  bool closure_points = true;  // add closure points at touching ends
+  unsigned seed = 0x15c0ffee;  // mixed with the joint index
 };
 
 struct BoneSamples {

@@ -36,7 +36,7 @@ struct FieldEvaluationJob {
   const TransformList* skinning = nullptr;  // #joints
   const Matrix3Xf* points = nullptr;        // #P by 3, model space
   FieldComposition composition = FieldComposition::kUnion;
-  Matrix4Xf* out_composed = nullptr;   // resized to #P by 4
+  Matrix4Xf* out_composed = nullptr;  // resized to #P by 4
   // Optional: resized to (#P * #fields) by 4, row p * #fields + i.
   Matrix4Xf* out_per_field = nullptr;
 

@@ -8,9 +8,8 @@
 // Gradients are analytic (chain rule through t_r), in the bone frame.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Geometry>
+#include <vector>
 
 #include "isk/bone_field.hpp"
 #include "isk/types.hpp"
@@ -19,11 +18,11 @@ namespace isk {
 
 struct FieldGrid {
   int joint = -1;
-  int resolution = 32;                   // nodes per axis
+  int resolution = 32;  // nodes per axis
   Eigen::Isometry3f bone_to_model = Eigen::Isometry3f::Identity();
-  Eigen::Vector3f box_min = {0, 0, 0};   // bone frame
+  Eigen::Vector3f box_min = {0, 0, 0};  // bone frame
   Eigen::Vector3f box_max = {0, 0, 0};
-  std::vector<float> nodes;              // resolution^3 * 4 floats
+  std::vector<float> nodes;  // resolution^3 * 4 floats
 
   Eigen::Vector3f spacing() const {
     return (box_max - box_min) / static_cast<float>(resolution - 1);
@@ -40,8 +39,8 @@ FieldGrid bakeField(const BoneField& field, int resolution = 32);
 
 // All baked fields of a character, ready to upload.
 struct FieldGridSet {
-  std::vector<FieldGrid> grids;    // one per field, in joint order
-  std::vector<int> field_of_joint; // #joints: index into grids, -1 if none
+  std::vector<FieldGrid> grids;     // one per field, in joint order
+  std::vector<int> field_of_joint;  // #joints: index into grids, -1 if none
   int resolution = 32;
 
   int fieldCount() const { return static_cast<int>(grids.size()); }

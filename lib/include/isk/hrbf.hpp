@@ -16,10 +16,9 @@
 // both leave a warning. Never NaN: a fit that still fails throws.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace isk {
 

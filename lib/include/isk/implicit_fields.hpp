@@ -50,8 +50,8 @@ struct ImplicitFields {
   std::vector<BoneField> fields;     // per field, joint order
   FieldGridSet grids;                // per field
   FieldComposition composition = FieldComposition::kUnion;
-  std::vector<float> iso_values;     // #V
-  std::vector<int> outside_vertices; // vertices outside every support
+  std::vector<float> iso_values;      // #V
+  std::vector<int> outside_vertices;  // vertices outside every support
   std::vector<std::string> warnings;
   ImplicitFieldsTimes times;
 };

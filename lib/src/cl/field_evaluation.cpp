@@ -8,6 +8,7 @@
 #include <string>
 
 #include "isk/error.hpp"
+#include "stopwatch.hpp"
 
 namespace isk {
 namespace {
@@ -16,12 +17,6 @@ constexpr size_t kFloat4 = 4 * sizeof(float);
 
 size_t roundUp(size_t n, size_t multiple) {
   return (n + multiple - 1) / multiple * multiple;
-}
-
-double since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
 }
 
 [[noreturn]] void invalid(const std::string& message) {
@@ -326,8 +321,9 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
         params_, CL_TRUE, 0,
         static_cast<size_t>(field_count_) * kParamStride * kFloat4,
         params_staging_.data(), nullptr, &write);
-    upload_ms_ =
-        context_->profilingEnabled() ? eventMilliseconds(write) : since(start);
+    upload_ms_ = context_->profilingEnabled()
+                     ? eventMilliseconds(write)
+                     : detail::millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, "ClFieldEvaluation::setPose");
   }
@@ -378,8 +374,9 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
         cl::NDRange(roundUp(static_cast<size_t>(point_count), 64)),
         cl::NullRange, nullptr, &run);
     run.wait();
-    kernel_ms_ =
-        context_->profilingEnabled() ? eventMilliseconds(run) : since(start);
+    kernel_ms_ = context_->profilingEnabled()
+                     ? eventMilliseconds(run)
+                     : detail::millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClFieldEvaluation::evaluate (") +
                         fieldStorageName(storage_) + ", " +

@@ -5,6 +5,7 @@
 
 #include "isk/error.hpp"
 #include "isk/vertex_normals.hpp"
+#include "stopwatch.hpp"
 
 namespace isk {
 namespace {
@@ -20,12 +21,6 @@ cl::Buffer uploadReadOnly(const cl::Context& context,
   std::vector<T> padded = data.empty() ? std::vector<T>(1) : data;
   return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                     padded.size() * sizeof(T), padded.data());
-}
-
-double since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
 }
 
 }  // namespace
@@ -106,7 +101,7 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
     queue.enqueueWriteBuffer(joint_transforms_, profiling ? CL_FALSE : CL_TRUE,
                              0, staging_.size() * sizeof(float),
                              staging_.data(), nullptr, &upload);
-    if (!profiling) times_.upload_ms = since(start);
+    if (!profiling) times_.upload_ms = detail::millisecondsSince(start);
 
     cl::Kernel& kernel =
         method == SkinningMethod::kLinearBlend ? lbs_kernel_ : dqs_kernel_;
@@ -126,7 +121,7 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
                                nullptr, &skin);
     if (!profiling) {
       skin.wait();
-      times_.skinning_ms = since(start);
+      times_.skinning_ms = detail::millisecondsSince(start);
     }
     if (recompute_normals) {
       normals_kernel_.setArg(0, n);
@@ -141,7 +136,7 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
                                  cl::NullRange, nullptr, &normals);
       if (!profiling) {
         normals.wait();
-        times_.normals_ms = since(start);
+        times_.normals_ms = detail::millisecondsSince(start);
       }
     }
     if (profiling) {
@@ -175,7 +170,7 @@ double ClSkinning::readBuffer(const cl::Buffer& buffer, Matrix3Xf& out,
                                         out.size() * sizeof(float), out.data(),
                                         nullptr, &read);
     return context_->profilingEnabled() ? eventMilliseconds(read)
-                                        : since(start);
+                                        : detail::millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClSkinning::") + what);
   }
