@@ -4,7 +4,6 @@
 // (blue), the 0.5 iso line (black) and the mesh section (green), index.md,
 // and clear errors for bad input.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -35,85 +34,18 @@ using test::ScopedTempDir;
 
 namespace fs = std::filesystem;
 
-std::string shellQuote(const std::string& arg) {
-  std::string quoted = "'";
-  for (char c : arg) {
-    if (c == '\'') {
-      quoted += "'\\''";
-    } else {
-      quoted += c;
-    }
-  }
-  return quoted + "'";
-}
-
-struct RunOutput {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
+using test::parsePngHeader;
+using test::PngHeader;
+using test::readFile;
+using test::RunOutput;
 
 RunOutput runSlices(const std::vector<std::string>& args) {
-  std::string command = shellQuote(ISK_FIELD_SLICES_EXE);
-  for (const std::string& arg : args) command += " " + shellQuote(arg);
-  command += " 2>&1";
-  RunOutput result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) {
-    ADD_FAILURE() << "popen failed: " << command;
-    return result;
-  }
-  char buffer[4096];
-  size_t n;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) {
-    result.output.append(buffer, n);
-  }
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
+  return test::runProgram(ISK_FIELD_SLICES_EXE, args);
 }
 
 std::string describe(const std::vector<std::string>& args,
                      const RunOutput& run) {
-  std::string text = "isk-field-slices";
-  for (const std::string& arg : args) text += " " + arg;
-  return text + "\nexit " + std::to_string(run.exit_code) + ", output:\n" +
-         run.output;
-}
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// Width and height from a PNG's signature and IHDR chunk; unset (0) when
-// the bytes are not a PNG.
-struct PngHeader {
-  bool valid = false;
-  uint32_t width = 0, height = 0;
-};
-
-uint32_t bigEndian32(const std::string& bytes, size_t at) {
-  uint32_t v = 0;
-  for (size_t i = 0; i < 4; ++i) {
-    v = (v << 8) | static_cast<uint8_t>(bytes[at + i]);
-  }
-  return v;
-}
-
-PngHeader parsePngHeader(const std::string& bytes) {
-  static const std::string kSignature("\x89PNG\r\n\x1a\n", 8);
-  PngHeader header;
-  if (bytes.size() < 33 || bytes.compare(0, 8, kSignature) != 0) return header;
-  // The first chunk: length 13, type IHDR, width, height, ...
-  if (bigEndian32(bytes, 8) != 13 || bytes.compare(12, 4, "IHDR") != 0) {
-    return header;
-  }
-  header.width = bigEndian32(bytes, 16);
-  header.height = bigEndian32(bytes, 20);
-  header.valid = true;
-  return header;
+  return test::describeRun("isk-field-slices", args, run);
 }
 
 // Pixels of each kind the picture's palette draws.

@@ -2,7 +2,6 @@
 // exit codes, frame files, the JSON report, device agreement, the output
 // folder guard and that the input is never modified.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
@@ -28,58 +27,18 @@ using test::ScopedTempDir;
 
 namespace fs = std::filesystem;
 
-std::string shellQuote(const std::string& arg) {
-  std::string quoted = "'";
-  for (char c : arg) {
-    if (c == '\'') {
-      quoted += "'\\''";
-    } else {
-      quoted += c;
-    }
-  }
-  return quoted + "'";
-}
-
-struct RunOutput {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
+using test::readFile;
+using test::RunOutput;
 
 // `environment` is prepended to the command ("NAME=value ...").
 RunOutput runIskSkin(const std::vector<std::string>& args,
                      const std::string& environment = "") {
-  std::string command = environment + shellQuote(ISK_SKIN_EXE);
-  for (const std::string& arg : args) command += " " + shellQuote(arg);
-  command += " 2>&1";
-  RunOutput result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) {
-    ADD_FAILURE() << "popen failed: " << command;
-    return result;
-  }
-  char buffer[4096];
-  size_t n;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) {
-    result.output.append(buffer, n);
-  }
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
+  return test::runProgram(ISK_SKIN_EXE, args, environment);
 }
 
 std::string describe(const std::vector<std::string>& args,
                      const RunOutput& run) {
-  std::string text = "isk-skin";
-  for (const std::string& arg : args) text += " " + arg;
-  return text + "\nexit " + std::to_string(run.exit_code) + ", output:\n" +
-         run.output;
-}
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
+  return test::describeRun("isk-skin", args, run);
 }
 
 // Vertex positions of an OBJ file written by isk::writeMesh.
@@ -368,7 +327,8 @@ TEST(IskSkinTest, RiggedSimpleAssetKeepsItsInputUntouched) {
 TEST(IskSkin, NoOpenClPlatformIsAClearErrorAndReferenceStillWorks) {
   ScopedTempDir empty_vendors;
   const std::string environment =
-      "OCL_ICD_VENDORS=" + shellQuote(empty_vendors.path().string()) + " ";
+      "OCL_ICD_VENDORS=" + test::shellQuote(empty_vendors.path().string()) +
+      " ";
   const std::vector<std::string> args = {"builtin:finger", "--frames", "2"};
   const RunOutput failed = runIskSkin(args, environment);
   EXPECT_EQ(failed.exit_code, 1) << describe(args, failed);

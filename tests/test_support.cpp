@@ -1,8 +1,13 @@
 #include "test_support.hpp"
 
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <random>
+#include <sstream>
 
 #include "data_folder.hpp"
 #include "isk/import.hpp"
@@ -95,6 +100,82 @@ ScopedTempDir::ScopedTempDir() {
 ScopedTempDir::~ScopedTempDir() {
   std::error_code ec;
   std::filesystem::remove_all(path_, ec);
+}
+
+std::string shellQuote(const std::string& arg) {
+  std::string quoted = "'";
+  for (char c : arg) {
+    if (c == '\'') {
+      quoted += "'\\''";
+    } else {
+      quoted += c;
+    }
+  }
+  return quoted + "'";
+}
+
+RunOutput runProgram(const std::string& program,
+                     const std::vector<std::string>& args,
+                     const std::string& environment) {
+  std::string command = environment + shellQuote(program);
+  for (const std::string& arg : args) command += " " + shellQuote(arg);
+  command += " 2>&1";
+  RunOutput result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) {
+    ADD_FAILURE() << "popen failed: " << command;
+    return result;
+  }
+  char buffer[4096];
+  size_t n;
+  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) {
+    result.output.append(buffer, n);
+  }
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+std::string describeRun(const std::string& name,
+                        const std::vector<std::string>& args,
+                        const RunOutput& run) {
+  std::string text = name;
+  for (const std::string& arg : args) text += " " + arg;
+  return text + "\nexit " + std::to_string(run.exit_code) + ", output:\n" +
+         run.output;
+}
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+namespace {
+
+uint32_t bigEndian32(const std::string& bytes, size_t at) {
+  uint32_t v = 0;
+  for (size_t i = 0; i < 4; ++i) {
+    v = (v << 8) | static_cast<uint8_t>(bytes[at + i]);
+  }
+  return v;
+}
+
+}  // namespace
+
+PngHeader parsePngHeader(const std::string& bytes) {
+  static const std::string kSignature("\x89PNG\r\n\x1a\n", 8);
+  PngHeader header;
+  if (bytes.size() < 33 || bytes.compare(0, 8, kSignature) != 0) return header;
+  // The first chunk: length 13, type IHDR, width, height, ...
+  if (bigEndian32(bytes, 8) != 13 || bytes.compare(12, 4, "IHDR") != 0) {
+    return header;
+  }
+  header.width = bigEndian32(bytes, 16);
+  header.height = bigEndian32(bytes, 20);
+  header.valid = true;
+  return header;
 }
 
 }  // namespace isk::test

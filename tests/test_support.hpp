@@ -1,9 +1,11 @@
-// Shared helpers of the test suite: assets, a shared OpenCL context, and
-// comparisons that report the index of the first mismatch (libigl's style).
+// Shared helpers of the test suite: assets, a shared OpenCL context,
+// comparisons that report the index of the first mismatch (libigl's style),
+// and running the sample executables end to end.
 #pragma once
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -63,5 +65,36 @@ class ScopedTempDir {
  private:
   std::filesystem::path path_;
 };
+
+// A program's exit code and its stdout and stderr together.
+struct RunOutput {
+  int exit_code = -1;  // -1 when it did not exit normally
+  std::string output;
+};
+
+// `arg` single-quoted for the shell.
+std::string shellQuote(const std::string& arg);
+
+// Runs `program` with `args` (each quoted) through the shell; `environment`
+// is prepended to the command ("NAME=value ...").
+RunOutput runProgram(const std::string& program,
+                     const std::vector<std::string>& args,
+                     const std::string& environment = "");
+
+// "NAME ARGS...\nexit N, output:\n..." for failure messages.
+std::string describeRun(const std::string& name,
+                        const std::vector<std::string>& args,
+                        const RunOutput& run);
+
+// The whole file (binary); empty when it cannot be read.
+std::string readFile(const std::string& path);
+
+// Width and height from a PNG's signature and IHDR chunk; unset (0) when
+// the bytes are not a PNG.
+struct PngHeader {
+  bool valid = false;
+  uint32_t width = 0, height = 0;
+};
+PngHeader parsePngHeader(const std::string& bytes);
 
 }  // namespace isk::test
