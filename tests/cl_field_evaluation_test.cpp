@@ -18,6 +18,7 @@
 #include <random>
 #include <sstream>
 
+#include "field_pictures.hpp"
 #include "isk/cl/field_evaluation.hpp"
 #include "isk/cl/skinning.hpp"
 #include "isk/error.hpp"
@@ -99,16 +100,7 @@ std::vector<Pose> posesOf(const Rig& rig) {
 // bounding box grown by 20%.
 Matrix3Xf pointsOf(const Rig& rig, const TransformList& skinning,
                    int random_count) {
-  Matrix3Xf positions, normals;
-  SkinningJob job;
-  job.method = SkinningMethod::kDualQuaternion;
-  job.rest_positions = &rig.mesh.positions;
-  job.rest_normals = &rig.mesh.normals;
-  job.weights = &rig.weights;
-  job.skinning = &skinning;
-  job.out_positions = &positions;
-  job.out_normals = &normals;
-  job.run();
+  const Matrix3Xf positions = samples::dqsPositions(rig, skinning);
   const Eigen::Vector3f lo = positions.colwise().minCoeff().transpose();
   const Eigen::Vector3f hi = positions.colwise().maxCoeff().transpose();
   const Eigen::Vector3f centre = 0.5f * (lo + hi);

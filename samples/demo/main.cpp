@@ -1,9 +1,14 @@
 // isk-demo: skins the procedural "arm" and "cylinder" rigs with LBS and DQS
 // on the default OpenCL device and on the CPU reference, writes the OpenCL
 // frames under out/<rig>/<method>/ and a summary table (stdout and
-// out/summary.md). Needs no input file.
+// out/summary.md). Then builds each rig's implicit fields, evaluates them at
+// the skinned vertices on the OpenCL device and on the CPU reference (bind
+// pose and the clip's middle frame), draws the composed field at both poses
+// (out/<rig>/fields/composed.png, composed_bent.png) and adds a second table
+// on the fields. Needs no input file.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -13,9 +18,14 @@
 #include <string>
 #include <vector>
 
+#include "field_pictures.hpp"
+#include "isk/cl/field_evaluation.hpp"
 #include "isk/error.hpp"
 #include "isk/export.hpp"
+#include "isk/field_evaluation.hpp"
+#include "isk/implicit_fields.hpp"
 #include "isk/mesh_metrics.hpp"
+#include "isk/pose.hpp"
 #include "skin_runner.hpp"
 
 namespace {
@@ -27,6 +37,14 @@ using isk::samples::RunResult;
 // OpenCL and reference outputs agree to float rounding; this bound (relative
 // to the bounding-box diagonal) only flags real disagreements.
 constexpr double kAgreementTolerance = 1e-4;
+
+// Largest |OpenCL - reference| field value accepted: the buffer path matches
+// to float rounding, the image path to the device's texture filtering (GPUs
+// interpolate with 8-bit weights).
+constexpr double kFieldTolerance[] = {/*buffer*/ 1e-4, /*image*/ 1e-2};
+
+// Longer side of the field pictures, in pixels.
+constexpr int kPictureSize = 512;
 
 struct Row {
   std::string rig;
@@ -77,13 +95,131 @@ Row makeRow(const std::string& rig, const std::string& method,
   return row;
 }
 
+// One rig's implicit fields: how they were built, how far the vertices' iso
+// values are from the surface's 0.5, how OpenCL agrees with the reference.
+struct FieldRow {
+  std::string rig;
+  int fields = 0;
+  int samples_min = 0, samples_max = 0;  // fitted points per field
+  double fit_bake_ms = 0;
+  double mib = 0;
+  double iso_mean = 0, iso_max = 0;  // |iso value - 0.5| over the vertices
+  std::string storage = "n/a";       // OpenCL storage, n/a without OpenCL
+  std::optional<double> max_difference;
+  std::vector<std::string> pictures;  // relative to the output folder
+};
+
+std::string formatFieldTable(const std::vector<FieldRow>& rows) {
+  std::ostringstream out;
+  out << "| rig | fields | samples per field | fit+bake ms | field MiB | "
+         "mean abs(iso - 0.5) | max abs(iso - 0.5) | OpenCL storage | max "
+         "abs(opencl - reference) field value | pictures |\n"
+      << "|---|---:|---:|---:|---:|---:|---:|---|---:|---|\n";
+  for (const FieldRow& row : rows) {
+    std::string pictures;
+    for (const std::string& p : row.pictures) {
+      pictures += (pictures.empty() ? "" : ", ") + p;
+    }
+    out << "| " << row.rig << " | " << row.fields << " | " << row.samples_min
+        << "-" << row.samples_max << " | "
+        << formatNumber("%.1f", row.fit_bake_ms) << " | "
+        << formatNumber("%.2f", row.mib) << " | "
+        << formatNumber("%.4f", row.iso_mean) << " | "
+        << formatNumber("%.4f", row.iso_max) << " | " << row.storage << " | "
+        << (row.max_difference ? formatNumber("%.2e", *row.max_difference)
+                               : "-")
+        << " | " << pictures << " |\n";
+  }
+  return out.str();
+}
+
+// Builds the fields of `rig`, compares OpenCL (when `context` is set) with
+// the reference at the skinned vertices of the bind pose and of the clip at
+// `bent_time`, and draws both poses under out_dir/<rig>/fields/.
+FieldRow runFields(const std::string& rig_name, const isk::Rig& rig,
+                   const isk::AnimationClip& clip, double bent_time,
+                   const std::shared_ptr<isk::ClContext>& context,
+                   const std::string& out_dir) {
+  const std::string prefix = "isk-demo: " + rig_name + ": ";
+  const isk::ImplicitFields fields = isk::samples::buildFieldsWithProgress(
+      rig, {}, prefix + "building fields", prefix + "warning: ");
+
+  FieldRow row;
+  row.rig = rig_name;
+  row.fields = fields.grids.fieldCount();
+  for (size_t i = 0; i < fields.samples.size(); ++i) {
+    const int count =
+        fields.samples[i].surface.size() + fields.samples[i].closure.size();
+    row.samples_min = i == 0 ? count : std::min(row.samples_min, count);
+    row.samples_max = i == 0 ? count : std::max(row.samples_max, count);
+  }
+  row.fit_bake_ms = fields.times.fitting_ms + fields.times.baking_ms;
+  row.mib = fields.grids.bytes() / (1024.0 * 1024.0);
+  for (const float iso : fields.iso_values) {
+    const double off = std::abs(iso - 0.5);
+    row.iso_mean += off;
+    row.iso_max = std::max(row.iso_max, off);
+  }
+  if (!fields.iso_values.empty()) row.iso_mean /= fields.iso_values.size();
+
+  // Bind pose: the rest mesh; bent: the clip's middle frame, skinned with
+  // DQS like the pictures of isk-field-slices.
+  const isk::TransformList bind = isk::bindPoseSkinning(rig.skeleton);
+  const isk::TransformList bent =
+      isk::samples::clipSkinning(rig.skeleton, clip, bent_time);
+  const isk::Matrix3Xf bent_positions = isk::samples::dqsPositions(rig, bent);
+  struct Pose {
+    const char* picture;
+    const isk::TransformList& skinning;
+    const isk::Matrix3Xf& positions;
+  };
+  const Pose poses[] = {{"composed.png", bind, rig.mesh.positions},
+                        {"composed_bent.png", bent, bent_positions}};
+
+  std::unique_ptr<isk::ClFieldEvaluation> evaluation;
+  if (context && row.fields > 0) {
+    evaluation = std::make_unique<isk::ClFieldEvaluation>(
+        context, fields.grids, rig.skeleton.jointCount());
+    row.storage = isk::fieldStorageName(evaluation->storage());
+    row.max_difference = 0.0;
+  }
+  const fs::path fields_dir = fs::path(out_dir) / rig_name / "fields";
+  fs::create_directories(fields_dir);
+  for (const Pose& pose : poses) {
+    if (evaluation) {
+      const isk::Matrix4Xf reference = isk::samples::composedField(
+          fields.grids, fields.composition, pose.skinning, pose.positions);
+      isk::Matrix4Xf opencl;
+      evaluation->evaluate(pose.skinning, pose.positions, opencl);
+      row.max_difference = std::max<double>(
+          *row.max_difference,
+          (opencl.col(0) - reference.col(0)).cwiseAbs().maxCoeff());
+    }
+    if (row.fields > 0) {
+      isk::samples::writeComposedPicture((fields_dir / pose.picture).string(),
+                                         rig, fields, pose.skinning,
+                                         pose.positions, kPictureSize);
+      row.pictures.push_back(
+          (fs::path(rig_name) / "fields" / pose.picture).string());
+    }
+  }
+  std::cerr << prefix << row.fields << " fields, pictures in "
+            << fields_dir.string() << "\n";
+  return row;
+}
+
 int run(const std::string& out_dir, int frames, const std::string& device) {
   const std::vector<std::string> rig_names = {"arm", "cylinder"};
   const std::vector<isk::SkinningMethod> methods = {
       isk::SkinningMethod::kLinearBlend, isk::SkinningMethod::kDualQuaternion};
 
   std::vector<Row> rows;
+  std::vector<FieldRow> field_rows;
   bool all_agree = true;
+  bool fields_agree = true;
+  // One OpenCL context for the field evaluations, made with the first rig
+  // that has an OpenCL device.
+  std::shared_ptr<isk::ClContext> field_context;
   for (const std::string& rig_name : rig_names) {
     const isk::Rig rig = isk::samples::loadRig("builtin:" + rig_name);
     const isk::AnimationClip clip = isk::samples::selectClip(rig, "", nullptr);
@@ -143,21 +279,54 @@ int run(const std::string& out_dir, int frames, const std::string& device) {
       rows.push_back(row);
       if (!(max_difference <= kAgreementTolerance)) all_agree = false;
     }
+
+    if (opencl && !opencl->isReference() && !field_context) {
+      field_context = isk::ClContext::create(device == "auto" ? "" : device);
+    }
+    // The clip's middle frame: the bent pose of the second picture.
+    const double bent_time = times[times.size() / 2];
+    field_rows.push_back(runFields(rig_name, rig, clip, bent_time,
+                                   opencl ? field_context : nullptr, out_dir));
+    const FieldRow& field_row = field_rows.back();
+    if (field_row.max_difference &&
+        !(*field_row.max_difference <=
+          kFieldTolerance[field_row.storage == "image"])) {
+      fields_agree = false;
+    }
   }
 
   std::string table = formatTable(rows);
-  std::cout << table;
+  const std::string field_table = formatFieldTable(field_rows);
+  std::cout << table << "\n" << field_table;
   const std::string summary_path = (fs::path(out_dir) / "summary.md").string();
-  isk::writeTextFile(summary_path, "# isk-demo summary\n\nFrames: " + out_dir +
-                                       "/<rig>/<method>/frame_XXXX.obj\n\n" +
-                                       table);
+  isk::writeTextFile(
+      summary_path,
+      "# isk-demo summary\n\nFrames: " + out_dir +
+          "/<rig>/<method>/frame_XXXX.obj\n\n" + table +
+          "\n## Implicit fields\n\nOne field per bone (HRBF fit, baked "
+          "32^3), evaluated at the skinned vertices (DQS) of the bind pose "
+          "and of the clip's middle frame on OpenCL and on the CPU "
+          "reference. Pictures (relative to " +
+          out_dir +
+          "): the composed field at the bind pose (composed.png) and at the "
+          "middle frame (composed_bent.png), inside red, outside blue, the "
+          "0.5 iso black, the mesh section green.\n\n" +
+          field_table);
   std::cerr << "isk-demo: wrote " << summary_path << "\n";
+  int status = 0;
   if (!all_agree) {
     std::cerr << "isk-demo: OpenCL and the CPU reference differ by more than "
               << kAgreementTolerance << " of the bounding-box diagonal\n";
-    return 1;
+    status = 1;
   }
-  return 0;
+  if (!fields_agree) {
+    std::cerr << "isk-demo: OpenCL and CPU reference field values differ by "
+                 "more than "
+              << kFieldTolerance[0] << " (buffer) or " << kFieldTolerance[1]
+              << " (image)\n";
+    status = 1;
+  }
+  return status;
 }
 
 }  // namespace
@@ -168,7 +337,8 @@ int main(int argc, char** argv) {
   std::string device = "auto";
   CLI::App app{
       "Skins the builtin arm and cylinder rigs with LBS and DQS on OpenCL and "
-      "on the CPU reference; writes frames and a summary table."};
+      "on the CPU reference, builds and evaluates their implicit fields; "
+      "writes frames, field pictures and a summary with two tables."};
   app.add_option("--out", out_dir, "output folder")->capture_default_str();
   app.add_option("--frames", frames,
                  "frames per clip (default: 30 per second of the clip)")

@@ -6,38 +6,33 @@
 // plane and the fields' statistics. See README.md.
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <set>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
+#include "field_pictures.hpp"
 #include "isk/error.hpp"
 #include "isk/export.hpp"
 #include "isk/field_evaluation.hpp"
 #include "isk/implicit_fields.hpp"
 #include "isk/pose.hpp"
 #include "isk/procedural.hpp"
-#include "isk/skinning.hpp"
 #include "skin_runner.hpp"
-#include "slice_image.hpp"
-#include "slice_plane.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
-using isk::samples::Image;
+using isk::samples::SliceEvaluator;
 using isk::samples::SlicePlane;
 using isk::samples::SliceStats;
+using isk::samples::SliceView;
 
 constexpr const char* kProgram = "isk-field-slices";
 
@@ -123,126 +118,6 @@ std::string safeName(const std::string& name) {
   return out;
 }
 
-// Runs work(first, last) over [0, count) in row chunks on every hardware
-// thread.
-void parallelRows(int count, const std::function<void(int, int)>& work) {
-  const int threads = std::max(
-      1, std::min<int>(count, static_cast<int>(std::max(
-                                  1u, std::thread::hardware_concurrency()))));
-  const int chunk = std::max(1, std::min(64, count / (threads * 4) + 1));
-  std::atomic<int> next{0};
-  auto worker = [&] {
-    for (;;) {
-      const int first = next.fetch_add(chunk);
-      if (first >= count) return;
-      work(first, std::min(count, first + chunk));
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
-}
-
-// Evaluates the fields at every pixel centre of the plane, image rows
-// spread over the hardware threads; `field` is an index into the fields, or
-// kComposed for the composed field. Baked: the grids through
-// isk::FieldEvaluationJob; analytic: each BoneField (HRBF through t_r, in
-// double) at the point taken back to the bind pose by its joint's skinning
-// transform, composed by the union (max).
-constexpr int kComposed = -1;
-
-class SliceEvaluator {
- public:
-  SliceEvaluator(const isk::ImplicitFields& fields,
-                 const isk::TransformList& skinning, const SlicePlane& plane)
-      : fields_(fields), skinning_(skinning), plane_(plane) {
-    for (const isk::BoneField& field : fields.fields) {
-      to_bind_.push_back(
-          skinning[field.joint].cast<double>().inverse(Eigen::Affine));
-    }
-  }
-
-  std::vector<float> baked(int field) {
-    const auto start = std::chrono::steady_clock::now();
-    isk::FieldGridSet single;
-    const isk::FieldGridSet* set = &fields_.grids;
-    if (field != kComposed) {
-      single.resolution = fields_.grids.resolution;
-      single.grids.push_back(fields_.grids.grids[field]);
-      set = &single;
-    }
-    std::vector<float> values(pixelCount(), 0.f);
-    parallelRows(plane_.height, [&](int first, int last) {
-      const isk::Matrix3Xf points = rowCentres(first, last);
-      isk::Matrix4Xf out;
-      isk::FieldEvaluationJob job;
-      job.fields = set;
-      job.skinning = &skinning_;
-      job.points = &points;
-      job.composition = fields_.composition;
-      job.out_composed = &out;
-      job.run();
-      const size_t offset = static_cast<size_t>(first) * plane_.width;
-      for (Eigen::Index p = 0; p < out.rows(); ++p) {
-        values[offset + p] = out(p, 0);
-      }
-    });
-    baked_ms_ += millisecondsSince(start);
-    return values;
-  }
-
-  std::vector<float> analytic(int field) {
-    const auto start = std::chrono::steady_clock::now();
-    const int count = static_cast<int>(fields_.fields.size());
-    const int lo = field == kComposed ? 0 : field;
-    const int hi = field == kComposed ? count : field + 1;
-    std::vector<float> values(pixelCount(), 0.f);
-    parallelRows(plane_.height, [&](int first, int last) {
-      const isk::Matrix3Xf points = rowCentres(first, last);
-      const size_t offset = static_cast<size_t>(first) * plane_.width;
-      for (Eigen::Index p = 0; p < points.rows(); ++p) {
-        const Eigen::Vector3d x = points.row(p).transpose().cast<double>();
-        float best = 0.f;
-        for (int i = lo; i < hi; ++i) {
-          best = std::max(best, static_cast<float>(
-                                    fields_.fields[i].value(to_bind_[i] * x)));
-        }
-        values[offset + p] = best;
-      }
-    });
-    analytic_ms_ += millisecondsSince(start);
-    return values;
-  }
-
-  double bakedMs() const { return baked_ms_; }
-  double analyticMs() const { return analytic_ms_; }
-
- private:
-  size_t pixelCount() const {
-    return static_cast<size_t>(plane_.width) * plane_.height;
-  }
-
-  // Pixel centres of image rows [first, last), row-major.
-  isk::Matrix3Xf rowCentres(int first, int last) const {
-    isk::Matrix3Xf points(
-        static_cast<Eigen::Index>(last - first) * plane_.width, 3);
-    for (int y = first; y < last; ++y) {
-      for (int x = 0; x < plane_.width; ++x) {
-        points.row(static_cast<Eigen::Index>(y - first) * plane_.width + x) =
-            plane_.pixelCentre(x, y).cast<float>().transpose();
-      }
-    }
-    return points;
-  }
-
-  const isk::ImplicitFields& fields_;
-  const isk::TransformList& skinning_;
-  const SlicePlane& plane_;
-  std::vector<Eigen::Affine3d> to_bind_;
-  double baked_ms_ = 0, analytic_ms_ = 0;
-};
-
 // How far two evaluations of one picture are apart.
 struct Agreement {
   float max_difference = 0;  // largest |a - b| over the pixels
@@ -313,10 +188,8 @@ int run(const Options& options) {
               << clip.name << "' (" << clip.duration << " s long)";
       throw isk::Error(isk::ErrorCode::kInvalidArgument, message.str());
     }
-    skinning = isk::skinningTransforms(
-        skeleton,
-        isk::globalTransforms(
-            skeleton, clip.sampleLocal(skeleton, clip.start + pose.seconds)));
+    skinning =
+        isk::samples::clipSkinning(skeleton, clip, clip.start + pose.seconds);
     std::ostringstream text;
     text << "clip '" << clip.name << "' at " << pose.seconds
          << " s (mesh section: dual quaternion skinning)";
@@ -329,74 +202,25 @@ int run(const Options& options) {
   // The fields, with progress on stderr: one update per stage and tenth.
   isk::ImplicitFieldsOptions build_options;
   build_options.grid_resolution = options.grid;
-  std::string last_stage;
-  int last_tenth = -1;
-  bool printed = false;
-  build_options.progress = [&](const char* stage, float fraction) {
-    const int tenth = static_cast<int>(fraction * 10.f);
-    if (stage == last_stage && tenth == last_tenth) return;
-    last_stage = stage;
-    last_tenth = tenth;
-    std::fprintf(stderr, "\rbuilding fields: %-10s %3d%%", stage, tenth * 10);
-    printed = true;
-  };
-  isk::ImplicitFields fields;
-  try {
-    fields = isk::buildImplicitFields(rig, build_options);
-  } catch (...) {
-    if (printed) std::fprintf(stderr, "\n");
-    throw;
-  }
-  if (printed) std::fprintf(stderr, "\n");
-  for (const std::string& warning : fields.warnings) {
-    std::cerr << "warning: " << warning << "\n";
-  }
+  const isk::ImplicitFields fields = isk::samples::buildFieldsWithProgress(
+      rig, build_options, "building fields", "warning: ");
   const int field_count = fields.grids.fieldCount();
   if (field_count == 0) {
     throw isk::Error(isk::ErrorCode::kInvalidArgument,
                      rig.source + ": no bone got a field (see the warnings)");
   }
 
-  // The mesh in the pose (geometric skinning; identity at the bind pose).
-  isk::Matrix3Xf positions = rig.mesh.positions;
-  if (!pose.bind) {
-    isk::Matrix3Xf normals;
-    isk::SkinningJob job;
-    job.method = isk::SkinningMethod::kDualQuaternion;
-    job.rest_positions = &rig.mesh.positions;
-    job.rest_normals = &rig.mesh.normals;
-    job.weights = &rig.weights;
-    job.skinning = &skinning;
-    job.out_positions = &positions;
-    job.out_normals = &normals;
-    job.run();
-  }
-
-  // The joints the plane follows: the skin joints (all joints if the file
-  // flags none), where the pose puts them.
-  const isk::TransformList bind_globals = skeleton.bindGlobals();
-  std::vector<Eigen::Vector3d> joints;
-  std::vector<int> joint_ids;
-  for (int pass = 0; pass < 2 && joints.empty(); ++pass) {
-    for (int j = 0; j < skeleton.jointCount(); ++j) {
-      if (pass == 0 && !skeleton.joints[j].is_skin_joint) continue;
-      joints.push_back(
-          (skinning[j] * bind_globals[j].translation()).cast<double>());
-      joint_ids.push_back(j);
-    }
-  }
-  const SlicePlane plane =
-      isk::samples::fitSlicePlane(joints, positions, options.size);
+  // The mesh in the pose (geometric skinning; identity at the bind pose)
+  // and the plane along the posed joints.
+  const isk::Matrix3Xf positions =
+      pose.bind ? rig.mesh.positions
+                : isk::samples::dqsPositions(rig, skinning);
+  const SliceView view =
+      isk::samples::makeSliceView(rig, skinning, positions, options.size);
+  const SlicePlane& plane = view.plane;
 
   const bool analytic = options.field == "analytic";
   SliceEvaluator evaluator(fields, skinning, plane);
-
-  const std::vector<isk::samples::Segment2> section =
-      isk::samples::meshSection(plane, positions, rig.mesh.triangles);
-  std::vector<Eigen::Vector2d> joint_dots;
-  for (const Eigen::Vector3d& j : joints) {
-    joint_dots.push_back(plane.toImage(j));
-  }
 
   std::error_code ec;
   const fs::path out_dir(options.out_dir);
@@ -413,10 +237,8 @@ int run(const Options& options) {
 
   std::vector<Picture> pictures;
   auto emit = [&](Picture picture, const std::vector<float>& values) {
-    picture.stats = isk::samples::sliceStats(values);
-    const Image image = isk::samples::renderSlice(
-        values, plane.width, plane.height, section, joint_dots);
-    isk::samples::writePng((out_dir / picture.file).string(), image);
+    picture.stats = isk::samples::writeSlicePicture(
+        (out_dir / picture.file).string(), values, view);
     std::cout << kProgram << ": wrote " << (out_dir / picture.file).string()
               << " (" << plane.width << "x" << plane.height << ", "
               << picture.what << "): f in [" << fixed(picture.stats.min) << ", "
@@ -432,8 +254,9 @@ int run(const Options& options) {
                   isk::fieldCompositionName(fields.composition) + " of " +
                   std::to_string(field_count) + " fields";
   {
-    const std::vector<float> baked = evaluator.baked(kComposed);
-    const std::vector<float> exact = evaluator.analytic(kComposed);
+    const std::vector<float> baked = evaluator.baked(SliceEvaluator::kComposed);
+    const std::vector<float> exact =
+        evaluator.analytic(SliceEvaluator::kComposed);
     composed.agreement = compare(baked, exact);
     emit(composed, analytic ? exact : baked);
   }
@@ -473,7 +296,7 @@ int run(const Options& options) {
      << "- composition: " << isk::fieldCompositionName(fields.composition)
      << " (max)\n"
      << "- plane: through " << formatVector(plane.origin) << " (centroid of "
-     << joints.size() << " joints), spanned by " << plane.how << "\n"
+     << view.joints.size() << " joints), spanned by " << plane.how << "\n"
      << "  - u (image right) = " << formatVector(plane.u) << "\n"
      << "  - v (image up) = " << formatVector(plane.v) << "\n"
      << "  - normal = " << formatVector(plane.normal) << "\n"
@@ -536,7 +359,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--grid", options.grid,
                  "baked grid resolution (nodes per axis)")
-      ->check(CLI::Range(2, 512))
+      ->check(CLI::Range(2, 256))
       ->capture_default_str();
   app.add_option("--field", options.field,
                  "what draws the pictures: baked (the grids) or analytic")
