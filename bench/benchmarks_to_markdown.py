@@ -13,15 +13,26 @@ import json
 import sys
 
 
-def frame_table(data):
+def group_runs(data, family, min_parts, key_and_slot):
+    """Runs of one family grouped by key: {key: {slot: run}}.
+
+    key_and_slot maps a name's "/" parts to (key, slot); runs with fewer parts
+    or that failed are left out.
+    """
     runs = {}
     for b in data["benchmarks"]:
-        # Frame/<backend>/<model>/<method>/real_time
         parts = b["name"].split("/")
-        if len(parts) < 4 or parts[0] != "Frame":
+        if (len(parts) < min_parts or parts[0] != family
+                or b.get("error_occurred")):
             continue
-        backend, model, method = parts[1], parts[2], parts[3]
-        runs.setdefault((model, method), {})[backend] = b
+        key, slot = key_and_slot(parts)
+        runs.setdefault(key, {})[slot] = b
+    return runs
+
+
+def frame_table(data):
+    # Frame/<backend>/<model>/<method>/real_time
+    runs = group_runs(data, "Frame", 4, lambda p: ((p[2], p[3]), p[1]))
     if not runs:
         return
     print("| model | vertices | method | OpenCL ms/frame | reference ms/frame "
@@ -39,13 +50,9 @@ def frame_table(data):
 
 
 def field_build_table(data):
-    runs = {}
-    for b in data["benchmarks"]:
-        # FieldBuild/<model>/threads:<n>/real_time
-        parts = b["name"].split("/")
-        if len(parts) < 3 or parts[0] != "FieldBuild":
-            continue
-        runs.setdefault(parts[1], {})[parts[2].split(":")[1]] = b
+    # FieldBuild/<model>/threads:<n>/real_time
+    runs = group_runs(data, "FieldBuild", 3,
+                      lambda p: (p[1], p[2].split(":")[1]))
     if not runs:
         return
     print("| model | vertices | joints | fields | field MiB | 1 thread ms "
@@ -67,13 +74,8 @@ def field_build_table(data):
 
 
 def field_eval_table(data):
-    runs = {}
-    for b in data["benchmarks"]:
-        # FieldEval/<backend>/<model>/real_time
-        parts = b["name"].split("/")
-        if len(parts) < 3 or parts[0] != "FieldEval" or b.get("error_occurred"):
-            continue
-        runs.setdefault(parts[2], {})[parts[1]] = b
+    # FieldEval/<backend>/<model>/real_time
+    runs = group_runs(data, "FieldEval", 3, lambda p: (p[2], p[1]))
     if not runs:
         return
     print("| model | points | fields | reference ms | OpenCL buffer ms "

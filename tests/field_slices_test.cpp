@@ -123,6 +123,18 @@ void expectPngSize(const std::string& file, uint32_t width, uint32_t height) {
 }
 
 // The expected file names of the arm's bone fields.
+// A composed picture has inside, outside, the 0.5 iso and the mesh section,
+// and its inside covers a fraction of the picture within the bounds given.
+void expectComposedPicture(const PixelCounts& picture, double min_red_fraction,
+                           double max_red_fraction) {
+  EXPECT_GT(picture.red, 0);
+  EXPECT_GT(picture.blue, 0);
+  EXPECT_GT(picture.iso, 0);
+  EXPECT_GT(picture.mesh, 0);
+  EXPECT_GT(picture.redFraction(), min_red_fraction) << picture.red;
+  EXPECT_LT(picture.redFraction(), max_red_fraction) << picture.red;
+}
+
 std::vector<std::string> armFieldFiles() {
   const Rig rig = makeBuiltinRig("arm");
   const BonePartition partition = partitionMesh(rig);
@@ -165,15 +177,10 @@ TEST(FieldSlicesTest, ArmWritesComposedAndPerFieldPictures) {
 
   const PixelCounts composed = countPixels(dir / "slices/composed.png");
   EXPECT_EQ(composed.width, int(composed_header.width));
-  EXPECT_GT(composed.red, 0);
-  EXPECT_GT(composed.blue, 0);
-  EXPECT_GT(composed.white, 0);
-  EXPECT_GT(composed.iso, 0);
-  EXPECT_GT(composed.mesh, 0);
-  EXPECT_GT(composed.joint, 0);
   // The arm's section fills a good part of its box, not all of it.
-  EXPECT_GT(composed.redFraction(), 0.08) << composed.red;
-  EXPECT_LT(composed.redFraction(), 0.6) << composed.red;
+  expectComposedPicture(composed, 0.08, 0.6);
+  EXPECT_GT(composed.white, 0);
+  EXPECT_GT(composed.joint, 0);
 
   // Each bone's field: its own inside, smaller than the union's.
   for (const std::string& name : armFieldFiles()) {
@@ -312,14 +319,8 @@ TEST(FieldSlicesTest, CesiumManAsset) {
   for (const std::string& name : files) {
     expectPngSize(dir / ("cm/" + name), header.width, header.height);
   }
-  const PixelCounts composed = countPixels(dir / "cm/composed.png");
-  EXPECT_GT(composed.red, 0);
-  EXPECT_GT(composed.blue, 0);
-  EXPECT_GT(composed.iso, 0);
-  EXPECT_GT(composed.mesh, 0);
   // A standing figure: arms, legs and head in red, far from filling its box.
-  EXPECT_GT(composed.redFraction(), 0.03) << composed.red;
-  EXPECT_LT(composed.redFraction(), 0.5) << composed.red;
+  expectComposedPicture(countPixels(dir / "cm/composed.png"), 0.03, 0.5);
   EXPECT_NE(readFile(dir / "cm/index.md").find("CesiumMan.glb"),
             std::string::npos);
 }

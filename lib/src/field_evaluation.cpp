@@ -80,6 +80,21 @@ void FieldEvaluationJob::run() const {
   }
 }
 
+Matrix4Xf evaluateComposedField(const FieldGridSet& fields,
+                                const TransformList& skinning,
+                                const Matrix3Xf& points,
+                                FieldComposition composition) {
+  Matrix4Xf composed;
+  FieldEvaluationJob job;
+  job.fields = &fields;
+  job.skinning = &skinning;
+  job.points = &points;
+  job.composition = composition;
+  job.out_composed = &composed;
+  job.run();
+  return composed;
+}
+
 std::vector<float> computeIsoValues(const FieldGridSet& fields,
                                     const Matrix3Xf& rest_positions,
                                     FieldComposition composition,
@@ -88,14 +103,8 @@ std::vector<float> computeIsoValues(const FieldGridSet& fields,
   for (const auto& g : fields.grids)
     joint_count = std::max(joint_count, g.joint + 1);
   const TransformList identity(joint_count, Eigen::Affine3f::Identity());
-  Matrix4Xf composed;
-  FieldEvaluationJob job;
-  job.fields = &fields;
-  job.skinning = &identity;
-  job.points = &rest_positions;
-  job.composition = composition;
-  job.out_composed = &composed;
-  job.run();
+  const Matrix4Xf composed =
+      evaluateComposedField(fields, identity, rest_positions, composition);
   std::vector<float> iso(composed.rows());
   if (outside) outside->clear();
   for (Eigen::Index v = 0; v < composed.rows(); ++v) {

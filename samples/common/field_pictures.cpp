@@ -93,21 +93,6 @@ Matrix3Xf dqsPositions(const Rig& rig, const TransformList& skinning) {
   return positions;
 }
 
-Matrix4Xf composedField(const FieldGridSet& fields,
-                        FieldComposition composition,
-                        const TransformList& skinning,
-                        const Matrix3Xf& points) {
-  Matrix4Xf out;
-  FieldEvaluationJob job;
-  job.fields = &fields;
-  job.skinning = &skinning;
-  job.points = &points;
-  job.composition = composition;
-  job.out_composed = &out;
-  job.run();
-  return out;
-}
-
 SliceView makeSliceView(const Rig& rig, const TransformList& skinning,
                         const Matrix3Xf& positions, int size) {
   const Skeleton& skeleton = rig.skeleton;
@@ -149,8 +134,8 @@ std::vector<float> SliceEvaluator::baked(int field) {
   }
   std::vector<float> values(pixelCount(), 0.f);
   parallelRows(plane_.height, [&](int first, int last) {
-    const Matrix4Xf out = composedField(*set, fields_.composition, skinning_,
-                                        rowCentres(first, last));
+    const Matrix4Xf out = evaluateComposedField(
+        *set, skinning_, rowCentres(first, last), fields_.composition);
     const size_t offset = static_cast<size_t>(first) * plane_.width;
     for (Eigen::Index p = 0; p < out.rows(); ++p) {
       values[offset + p] = out(p, 0);

@@ -42,13 +42,6 @@ TransformList clipSkinning(const Skeleton& skeleton, const AnimationClip& clip,
 // (the geometric skinning the implicit skinning starts from).
 Matrix3Xf dqsPositions(const Rig& rig, const TransformList& skinning);
 
-// The composed field (value, gradient; #P by 4) of `fields` at `points`
-// (model space) for the pose `skinning`, on the CPU reference
-// (isk::FieldEvaluationJob).
-Matrix4Xf composedField(const FieldGridSet& fields,
-                        FieldComposition composition,
-                        const TransformList& skinning, const Matrix3Xf& points);
-
 // What a picture of the fields at a pose is drawn in and over.
 struct SliceView {
   SlicePlane plane;

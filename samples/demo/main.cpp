@@ -187,8 +187,8 @@ FieldRow runFields(const std::string& rig_name, const isk::Rig& rig,
   fs::create_directories(fields_dir);
   for (const Pose& pose : poses) {
     if (evaluation) {
-      const isk::Matrix4Xf reference = isk::samples::composedField(
-          fields.grids, fields.composition, pose.skinning, pose.positions);
+      const isk::Matrix4Xf reference = isk::evaluateComposedField(
+          fields.grids, pose.skinning, pose.positions, fields.composition);
       isk::Matrix4Xf opencl;
       evaluation->evaluate(pose.skinning, pose.positions, opencl);
       row.max_difference = std::max<double>(

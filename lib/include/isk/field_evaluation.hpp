@@ -45,6 +45,13 @@ struct FieldEvaluationJob {
   void run() const;
 };
 
+// The composed field at posed points, #P by 4 (FieldEvaluationJob in one
+// call). Throws isk::Error(kInvalidArgument) on inconsistent input.
+Matrix4Xf evaluateComposedField(const FieldGridSet& fields,
+                                const TransformList& skinning,
+                                const Matrix3Xf& points,
+                                FieldComposition composition);
+
 // Every vertex's value of the composed field at the bind pose (the iso value
 // it is projected back to while animating), #V. `outside` (when given)
 // receives the vertices outside every field's support (value 0).

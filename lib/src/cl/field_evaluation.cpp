@@ -23,6 +23,19 @@ size_t roundUp(size_t n, size_t multiple) {
   throw Error(ErrorCode::kInvalidArgument, "ClFieldEvaluation: " + message);
 }
 
+// Blocking read of the first `rows` float4 rows of a device buffer.
+void readRows(const cl::CommandQueue& queue, const cl::Buffer& buffer,
+              size_t rows, const char* call, Matrix4Xf& out) {
+  out.resize(static_cast<Eigen::Index>(rows), 4);
+  if (out.size() == 0) return;
+  try {
+    queue.enqueueReadBuffer(buffer, CL_TRUE, 0, out.size() * sizeof(float),
+                            out.data());
+  } catch (const cl::Error& e) {
+    throwClError(e, call);
+  }
+}
+
 void validateFields(const FieldGridSet& fields, int joint_count) {
   if (joint_count < 0) invalid("joint_count is " + std::to_string(joint_count));
   const int n = fields.resolution;
@@ -412,28 +425,17 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
 }
 
 void ClFieldEvaluation::readComposed(Matrix4Xf& out) {
-  out.resize(last_point_count_, 4);
-  if (out.size() == 0) return;
-  try {
-    context_->queue().enqueueReadBuffer(composed_, CL_TRUE, 0,
-                                        out.size() * sizeof(float), out.data());
-  } catch (const cl::Error& e) {
-    throwClError(e, "ClFieldEvaluation::readComposed");
-  }
+  readRows(context_->queue(), composed_, last_point_count_,
+           "ClFieldEvaluation::readComposed", out);
 }
 
 void ClFieldEvaluation::readPerField(Matrix4Xf& out) {
   if (!last_per_field_)
     invalid(
         "readPerField: the last evaluation did not ask for per-field results");
-  out.resize(static_cast<Eigen::Index>(last_point_count_) * field_count_, 4);
-  if (out.size() == 0) return;
-  try {
-    context_->queue().enqueueReadBuffer(per_field_, CL_TRUE, 0,
-                                        out.size() * sizeof(float), out.data());
-  } catch (const cl::Error& e) {
-    throwClError(e, "ClFieldEvaluation::readPerField");
-  }
+  readRows(context_->queue(), per_field_,
+           static_cast<size_t>(last_point_count_) * field_count_,
+           "ClFieldEvaluation::readPerField", out);
 }
 
 }  // namespace isk
