@@ -1,7 +1,10 @@
 // Baked implicit fields (isk/field_grid.hpp) evaluated at posed points, and
-// their union (isk/field_evaluation.hpp). OpenCL C 1.2, self-contained. CPU
-// reference: lib/src/field_grid.cpp (sampling) and lib/src/field_evaluation.cpp
-// (transforms and composition). Host class: lib/src/cl/field_evaluation.cpp.
+// their composition (isk/field_composition.hpp: the max of every field and of
+// every blend or bulge pair, eq. 3). OpenCL C 1.2, self-contained. CPU
+// reference: lib/src/field_grid.cpp (sampling), lib/src/field_evaluation.cpp
+// (transforms, broad phase, composition), lib/src/composition_operator.cpp
+// (operator tables, controllers) and lib/src/field_composition.cpp
+// (composePair). Host class: lib/src/cl/field_evaluation.cpp.
 //
 // Storage, chosen at build time by ISK_FIELDS_IMAGE (0 when undefined):
 //   1: one read-only image3d_t atlas, CL_RGBA / CL_FLOAT, every field one
@@ -17,12 +20,32 @@
 //   [0..2] rows of the model -> bone 3x4 matrix (per pose);
 //   [3]    box_min.xyz (bone frame), w unused;
 //   [4]    1 / spacing, xyz, w = N - 1 (last node index, as a float);
-//   [5]    image path: tile origin + 0.5 (texels), xyz; unused by the buffer.
+//   [5]    image path: tile origin + 0.5 (texels), xyz; unused by the buffer;
+//   [6]    bounding sphere of the support box, model space (per pose):
+//          centre xyz, w = squared radius. A point outside it is outside the
+//          box: the field is not sampled (broad phase).
 //
-// Later kernels sample the same data: declare ISK_FIELD_PARAMS among their
-// parameters (field data, field params, field count, resolution: four
-// consecutive kernel arguments, bound by ClFieldEvaluation::setFieldArgs) and
-// call sample_composed(ISK_FIELD_ARGS, x).
+// Operator tables (isk/composition_operator.hpp), same storage as the fields:
+// T tables of N^3 float4 (G, dG/dx, dG/dy, 0) over (x, y, theta), x the
+// larger field; node (i, j, k) of table t at i + N * (j + N * (k + N * t))
+// (the buffer) or at texel (i, j, t * N + k) (the image, N x N x T*N).
+// Composition parameters (five consecutive kernel arguments,
+// ISK_COMPOSITION_PARAMS, bound by ClFieldEvaluation::setCompositionArgs):
+//   operator_data    the tables;
+//   pairs            int4 per blend or bulge pair: field a, field b, table,
+//                    offset of its controller in `controllers`;
+//   pair_count;
+//   controllers      ISK_CONTROLLER_SAMPLES floats each: theta at
+//                    alpha = pi * i / (ISK_CONTROLLER_SAMPLES - 1);
+//   operator_scales  N - 1, (N - 1) / (pi / 4) (theta -> node), and
+//                    (ISK_CONTROLLER_SAMPLES - 1) / pi (alpha -> sample), as
+//                    the host computes them in float.
+//
+// Later kernels sample the same data: declare ISK_FIELD_PARAMS and
+// ISK_COMPOSITION_PARAMS among their parameters (field data, field params,
+// field count, resolution: four consecutive kernel arguments bound by
+// ClFieldEvaluation::setFieldArgs; then the five above) and call
+// sample_composed(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x).
 
 // The reference interpolates without fused multiply-adds; so does the buffer
 // path, so that on a CPU device both agree to the last bits.
@@ -32,22 +55,31 @@
 #define ISK_FIELDS_IMAGE 0
 #endif
 
-#define ISK_FIELD_PARAM_STRIDE 6
+#define ISK_FIELD_PARAM_STRIDE 7
+#define ISK_CONTROLLER_SAMPLES 64
 
 #if ISK_FIELDS_IMAGE
 #define ISK_FIELD_DATA_T read_only image3d_t
+#define ISK_OPERATOR_DATA_T read_only image3d_t
 // Texel centres at integer + 0.5; tile edges are reached with a zero weight
 // on the neighbour, so u in [0, N-1] never reads another tile.
 __constant sampler_t kFieldSampler =
     CLK_NORMALIZED_COORDS_FALSE | CLK_ADDRESS_CLAMP_TO_EDGE | CLK_FILTER_LINEAR;
 #else
 #define ISK_FIELD_DATA_T __global const float4*
+#define ISK_OPERATOR_DATA_T __global const float4*
 #endif
 
 #define ISK_FIELD_PARAMS                                            \
   ISK_FIELD_DATA_T field_data, __global const float4 *field_params, \
       const uint field_count, const int resolution
 #define ISK_FIELD_ARGS field_data, field_params, field_count, resolution
+#define ISK_COMPOSITION_PARAMS                                         \
+  ISK_OPERATOR_DATA_T operator_data, __global const int4 *pairs,       \
+      const uint pair_count, __global const float *controllers,        \
+      const float4 operator_scales
+#define ISK_COMPOSITION_ARGS \
+  operator_data, pairs, pair_count, controllers, operator_scales
 
 // Value and bone-frame gradient of field `field` at node coordinates u
 // (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
@@ -102,34 +134,122 @@ float4 sample_field(ISK_FIELD_DATA_T field_data,
   return (float4)(s.x, g);
 }
 
+// The field `field` at x if x lies in its bounding sphere, else 0 (value and
+// gradient): the broad phase.
+float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
+                           __global const float4* field_params,
+                           const uint field, const int resolution,
+                           const float3 x) {
+  const float4 sphere = field_params[ISK_FIELD_PARAM_STRIDE * field + 6];
+  const float3 d = x - sphere.xyz;
+  if (!(d.x * d.x + d.y * d.y + d.z * d.z <= sphere.w)) return (float4)(0.0f);
+  return sample_field(field_data, field_params, field, resolution, x);
+}
+
 // Union (Vaillant et al. 2013, eq. 3): the larger value with its gradient;
-// on ties the field met first stays. Start from (float4)(0): nothing
+// on ties the one met first stays. Start from (float4)(0): nothing
 // positive gives value 0 and a zero gradient.
 float4 compose_union(const float4 best, const float4 sample) {
   return sample.x > best.x ? sample : best;
 }
 
-// The composed field at model-space point x.
-float4 sample_composed(ISK_FIELD_PARAMS, const float3 x) {
-  float4 best = (float4)(0.0f);
-  for (uint i = 0; i < field_count; ++i)
-    best = compose_union(
-        best, sample_field(field_data, field_params, i, resolution, x));
+// Table `table` at (x, y, theta), x >= y: G, dG/dx, dG/dy. The buffer path
+// interpolates as OperatorTable::sample does.
+float3 sample_operator(ISK_OPERATOR_DATA_T operator_data, const int table,
+                       const float4 scales, const float x, const float y,
+                       const float theta) {
+  const float last = scales.x;
+  const float3 u = (float3)(clamp(x, 0.0f, 1.0f) * last,
+                            clamp(y, 0.0f, 1.0f) * last,
+                            clamp(theta * scales.y, 0.0f, last));
+#if ISK_FIELDS_IMAGE
+  return read_imagef(operator_data, kFieldSampler,
+                     (float4)(u.x + 0.5f, u.y + 0.5f,
+                              (float)table * (last + 1.0f) + u.z + 0.5f, 0.0f))
+      .xyz;
+#else
+  const int n = (int)last + 1;
+  const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));
+  const float3 t = u - convert_float3(i);
+  const size_t nn = (size_t)n;
+  __global const float4* base =
+      operator_data + (size_t)table * nn * nn * nn +
+      ((size_t)i.x + nn * ((size_t)i.y + nn * (size_t)i.z));
+  const size_t dy = nn;
+  const size_t dz = nn * nn;
+  const float4 x00 = base[0] + t.x * (base[1] - base[0]);
+  const float4 x10 = base[dy] + t.x * (base[dy + 1] - base[dy]);
+  const float4 x01 = base[dz] + t.x * (base[dz + 1] - base[dz]);
+  const float4 x11 = base[dy + dz] + t.x * (base[dy + dz + 1] - base[dy + dz]);
+  const float4 y0 = x00 + t.y * (x10 - x00);
+  const float4 y1 = x01 + t.y * (x11 - x01);
+  return (y0 + t.z * (y1 - y0)).xyz;
+#endif
+}
+
+// A blend or bulge pair's composition of samples a and b (value, gradient):
+// theta from the angle between the gradients through the pair's
+// controller, then the table, then the chain rule (composePair).
+float4 compose_pair(ISK_COMPOSITION_PARAMS, const int4 pair, const float4 a,
+                    const float4 b) {
+  const float3 ga = a.yzw;
+  const float3 gb = b.yzw;
+  const float la = sqrt(ga.x * ga.x + ga.y * ga.y + ga.z * ga.z);
+  const float lb = sqrt(gb.x * gb.x + gb.y * gb.y + gb.z * gb.z);
+  float alpha = 0.0f;
+  if (la > 0.0f && lb > 0.0f)
+    alpha = acos(clamp((ga.x * gb.x + ga.y * gb.y + ga.z * gb.z) / (la * lb),
+                       -1.0f, 1.0f));
+  __global const float* c = controllers + pair.w;
+  const float s = clamp(alpha * operator_scales.z, 0.0f,
+                        (float)(ISK_CONTROLLER_SAMPLES - 1));
+  const int i = min((int)s, ISK_CONTROLLER_SAMPLES - 2);
+  const float theta = c[i] + (s - (float)i) * (c[i + 1] - c[i]);
+  const int first = a.x >= b.x;
+  const float3 g = sample_operator(operator_data, pair.z, operator_scales,
+                                   first ? a.x : b.x, first ? b.x : a.x, theta);
+  const float d1 = first ? g.y : g.z;
+  const float d2 = first ? g.z : g.y;
+  return (float4)(g.x, d1 * ga + d2 * gb);
+}
+
+// The blend and bulge pairs on top of `best` (the max of every field).
+float4 compose_pairs(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
+                     const float3 x, float4 best) {
+  for (uint k = 0; k < pair_count; ++k) {
+    const int4 pair = pairs[k];
+    const float4 a = sample_field_culled(field_data, field_params,
+                                         (uint)pair.x, resolution, x);
+    if (!(a.x > 0.0f)) continue;  // the pair is max(a, b): already in
+    const float4 b = sample_field_culled(field_data, field_params,
+                                         (uint)pair.y, resolution, x);
+    if (!(b.x > 0.0f)) continue;
+    best = compose_union(best, compose_pair(ISK_COMPOSITION_ARGS, pair, a, b));
+  }
   return best;
 }
 
+// The composed field at model-space point x.
+float4 sample_composed(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
+                       const float3 x) {
+  float4 best = (float4)(0.0f);
+  for (uint i = 0; i < field_count; ++i)
+    best = compose_union(best, sample_field_culled(field_data, field_params, i,
+                                                   resolution, x));
+  return compose_pairs(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, best);
+}
+
 // Arguments (ClFieldEvaluation binds them in this order):
-//   0 points          packed float3 (x y z per point), model space, posed
+//   0 points            packed float3 (x y z per point), model space, posed
 //   1 point_count
-//   2 field_data      image atlas or float4 buffer (see above)
-//   3 field_params    ISK_FIELD_PARAM_STRIDE float4 per field
-//   4 field_count
-//   5 resolution      nodes per axis, N
-//   6 out_composed    one float4 per point: value, gradient x y z
-//   7 out_per_field   one float4 per point and field, row p * F + i
-//   8 write_per_field 0: out_per_field is not touched (may be a dummy)
+//   2..5 field data, field params, field count, resolution (see above)
+//   6..10 operator data, pairs, pair count, controllers, operator scales
+//   11 out_composed     one float4 per point: value, gradient x y z
+//   12 out_per_field    one float4 per point and field, row p * F + i
+//   13 write_per_field  0: out_per_field is not touched (may be a dummy)
 __kernel void evaluate_fields(__global const float* points,
                               const uint point_count, ISK_FIELD_PARAMS,
+                              ISK_COMPOSITION_PARAMS,
                               __global float4* out_composed,
                               __global float4* out_per_field,
                               const uint write_per_field) {
@@ -138,9 +258,10 @@ __kernel void evaluate_fields(__global const float* points,
   const float3 x = vload3(p, points);
   float4 best = (float4)(0.0f);
   for (uint i = 0; i < field_count; ++i) {
-    const float4 s = sample_field(field_data, field_params, i, resolution, x);
+    const float4 s =
+        sample_field_culled(field_data, field_params, i, resolution, x);
     if (write_per_field) out_per_field[(size_t)p * field_count + i] = s;
     best = compose_union(best, s);
   }
-  out_composed[p] = best;
+  out_composed[p] = compose_pairs(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, best);
 }

@@ -516,7 +516,7 @@ TEST(ImplicitFields, ReportsProgressTimesAndIsDeterministic) {
   const ImplicitFields a = buildImplicitFields(rig, options);
   EXPECT_EQ(stages,
             (std::vector<std::string>{"partition", "sampling", "fitting",
-                                      "baking", "iso values"}));
+                                      "baking", "operators", "iso values"}));
   EXPECT_GT(a.times.total(), 0);
   options.progress = nullptr;
   options.threads = 1;

@@ -6,14 +6,6 @@
 
 namespace isk {
 
-const char* fieldCompositionName(FieldComposition composition) {
-  switch (composition) {
-    case FieldComposition::kUnion:
-      return "union";
-  }
-  return "unknown";
-}
-
 std::vector<Eigen::Affine3f> fieldTransforms(const FieldGridSet& fields,
                                              const TransformList& skinning) {
   std::vector<Eigen::Affine3f> out;
@@ -22,6 +14,23 @@ std::vector<Eigen::Affine3f> fieldTransforms(const FieldGridSet& fields,
     const Eigen::Affine3f bone_to_posed =
         skinning[grid.joint] * Eigen::Affine3f(grid.bone_to_model.matrix());
     out.push_back(bone_to_posed.inverse(Eigen::Affine));
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector4f> posedFieldSpheres(
+    const FieldGridSet& fields, const std::vector<Eigen::Affine3f>& to_bone) {
+  std::vector<Eigen::Vector4f> out;
+  out.reserve(fields.grids.size());
+  for (size_t i = 0; i < fields.grids.size(); ++i) {
+    const Eigen::Vector4f sphere = fieldBoundingSphere(fields.grids[i]);
+    const Eigen::Affine3f to_model = to_bone[i].inverse(Eigen::Affine);
+    const Eigen::Vector3f centre = to_model * sphere.head<3>();
+    // The largest stretch of the linear part (1 for a rigid pose).
+    const float stretch =
+        to_model.linear().jacobiSvd().singularValues()[0] * 1.0001f;
+    const float radius = sphere[3] * stretch;
+    out.emplace_back(centre.x(), centre.y(), centre.z(), radius * radius);
   }
   return out;
 }
@@ -44,6 +53,27 @@ Validation FieldEvaluationJob::validate() const {
       return Validation::fail("field " + std::to_string(i) +
                               " has a malformed grid");
   }
+  if (composition) {
+    for (const FieldPair& p : composition->pairs)
+      if (p.field_a < 0 || p.field_b < 0 || p.field_a >= fields->fieldCount() ||
+          p.field_b >= fields->fieldCount())
+        return Validation::fail(
+            "the composition pairs fields " + std::to_string(p.field_a) +
+            " and " + std::to_string(p.field_b) + " but the set has " +
+            std::to_string(fields->fieldCount()) +
+            " (built for other fields?)");
+    for (int k : composition->blended_pairs) {
+      const FieldPair& p = composition->pairs.at(k);
+      if (p.controller < 0 ||
+          p.controller >= static_cast<int>(composition->controllers.size()) ||
+          p.table < 0 ||
+          p.table >= static_cast<int>(composition->tables.size()) ||
+          !composition->tables[p.table])
+        return Validation::fail("the composition's pair at joint " +
+                                std::to_string(p.joint) +
+                                " has no controller or table");
+    }
+  }
   for (size_t j = 0; j < skinning->size(); ++j)
     if (!(*skinning)[j].matrix().allFinite())
       return Validation::fail("skinning transform " + std::to_string(j) +
@@ -61,20 +91,38 @@ void FieldEvaluationJob::run() const {
   if (out_per_field)
     out_per_field->resize(static_cast<Eigen::Index>(point_count) * field_count,
                           4);
+  const std::vector<Eigen::Vector4f> spheres =
+      posedFieldSpheres(*fields, to_bone);
+  std::vector<Eigen::Vector4f> samples(field_count);
   for (int p = 0; p < point_count; ++p) {
     const Eigen::Vector3f x = points->row(p).transpose();
     Eigen::Vector4f best = Eigen::Vector4f::Zero();
     for (int i = 0; i < field_count; ++i) {
-      const Eigen::Vector4f local =
-          fields->grids[i].sampleLocal(to_bone[i] * x);
-      // Gradient back to model space: transpose of the inverse's linear part.
-      Eigen::Vector4f sample;
-      sample[0] = local[0];
-      sample.tail<3>() = to_bone[i].linear().transpose() * local.tail<3>();
+      Eigen::Vector4f& sample = samples[i];
+      sample.setZero();
+      // Broad phase: a point outside the sphere is outside the support box.
+      if ((x - spheres[i].head<3>()).squaredNorm() <= spheres[i][3]) {
+        const Eigen::Vector4f local =
+            fields->grids[i].sampleLocal(to_bone[i] * x);
+        // Gradient back to model space: transpose of the inverse's linear
+        // part.
+        sample[0] = local[0];
+        sample.tail<3>() = to_bone[i].linear().transpose() * local.tail<3>();
+      }
       if (out_per_field)
         out_per_field->row(static_cast<Eigen::Index>(p) * field_count + i) =
             sample.transpose();
       if (sample[0] > best[0]) best = sample;  // union: max, first on ties
+    }
+    if (composition) {
+      for (int k : composition->blended_pairs) {
+        const FieldPair& pair = composition->pairs[k];
+        const Eigen::Vector4f& a = samples[pair.field_a];
+        const Eigen::Vector4f& b = samples[pair.field_b];
+        if (!(a[0] > 0.f && b[0] > 0.f)) continue;  // max(a, b) already in
+        const Eigen::Vector4f g = composePair(*composition, pair, a, b);
+        if (g[0] > best[0]) best = g;
+      }
     }
     out_composed->row(p) = best.transpose();
   }
@@ -83,7 +131,7 @@ void FieldEvaluationJob::run() const {
 Matrix4Xf evaluateComposedField(const FieldGridSet& fields,
                                 const TransformList& skinning,
                                 const Matrix3Xf& points,
-                                FieldComposition composition) {
+                                const Composition* composition) {
   Matrix4Xf composed;
   FieldEvaluationJob job;
   job.fields = &fields;
@@ -97,7 +145,7 @@ Matrix4Xf evaluateComposedField(const FieldGridSet& fields,
 
 std::vector<float> computeIsoValues(const FieldGridSet& fields,
                                     const Matrix3Xf& rest_positions,
-                                    FieldComposition composition,
+                                    const Composition* composition,
                                     std::vector<int>* outside) {
   int joint_count = 0;
   for (const auto& g : fields.grids)

@@ -1,72 +1,17 @@
 #include "isk/implicit_fields.hpp"
 
 #include <array>
-#include <atomic>
 #include <chrono>
-#include <condition_variable>
-#include <exception>
 #include <map>
-#include <mutex>
-#include <thread>
 
 #include "isk/error.hpp"
+#include "parallel_for.hpp"
 #include "stopwatch.hpp"
 
 namespace isk {
 namespace {
 
-// Runs work(i) for i in [0, count) on `threads` threads; the calling thread
-// reports progress(done / count) as items finish. The first exception thrown
-// by an item is rethrown after all threads stop.
-void parallelFor(int count, int threads, const std::function<void(int)>& work,
-                 const std::function<void(float)>& progress) {
-  if (count <= 0) {
-    if (progress) progress(1.f);
-    return;
-  }
-  threads = std::max(1, std::min(threads, count));
-  std::atomic<int> next{0};
-  std::mutex mutex;
-  std::condition_variable finished;
-  int done = 0;
-  std::exception_ptr failure;
-  auto worker = [&] {
-    for (;;) {
-      const int i = next.fetch_add(1);
-      if (i >= count) return;
-      try {
-        work(i);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(mutex);
-        if (!failure) failure = std::current_exception();
-      }
-      {
-        std::lock_guard<std::mutex> lock(mutex);
-        ++done;
-      }
-      finished.notify_one();
-    }
-  };
-  if (progress) progress(0.f);
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
-  {
-    std::unique_lock<std::mutex> lock(mutex);
-    int reported = 0;
-    while (done < count) {
-      finished.wait(lock, [&] { return done != reported; });
-      reported = done;
-      if (progress) {
-        lock.unlock();
-        progress(static_cast<float>(reported) / count);
-        lock.lock();
-      }
-    }
-  }
-  for (auto& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
-  if (progress) progress(1.f);
-}
+using detail::parallelFor;
 
 // The part's vertices with their geometric normals, as samples: the last
 // resort for parts too small for Poisson-disk sampling.
@@ -121,14 +66,13 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   if (!(options.sampling.culling_h >= 0 && options.sampling.culling_h < 0.5))
     throw Error(ErrorCode::kInvalidArgument,
                 "buildImplicitFields: culling_h must be in [0, 0.5)");
+  validateCompositionOptions(rig.skeleton, options.composition)
+      .throwIfFailed("buildImplicitFields");
   auto report = [&](const char* stage, float fraction) {
     if (options.progress) options.progress(stage, fraction);
   };
-  const int threads = options.threads > 0
-                          ? options.threads
-                          : std::max(1u, std::thread::hardware_concurrency());
+  const int threads = detail::threadCount(options.threads);
   ImplicitFields out;
-  out.composition = options.composition;
 
   auto start = std::chrono::steady_clock::now();
   report("partition", 0);
@@ -206,9 +150,17 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   out.times.baking_ms = detail::millisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
+  report("operators", 0);
+  out.composition = buildComposition(skeleton, out.grids, options.composition,
+                                     [&](float f) { report("operators", f); });
+  out.warnings.insert(out.warnings.end(), out.composition.warnings.begin(),
+                      out.composition.warnings.end());
+  out.times.operators_ms = detail::millisecondsSince(start);
+
+  start = std::chrono::steady_clock::now();
   report("iso values", 0);
   out.iso_values = computeIsoValues(out.grids, rig.mesh.positions,
-                                    options.composition, &out.outside_vertices);
+                                    &out.composition, &out.outside_vertices);
   if (!out.outside_vertices.empty())
     out.warnings.push_back(
         std::to_string(out.outside_vertices.size()) +

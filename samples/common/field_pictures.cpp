@@ -135,7 +135,8 @@ std::vector<float> SliceEvaluator::baked(int field) {
   std::vector<float> values(pixelCount(), 0.f);
   parallelRows(plane_.height, [&](int first, int last) {
     const Matrix4Xf out = evaluateComposedField(
-        *set, skinning_, rowCentres(first, last), fields_.composition);
+        *set, skinning_, rowCentres(first, last),
+        field == kComposed ? &fields_.composition : nullptr);
     const size_t offset = static_cast<size_t>(first) * plane_.width;
     for (Eigen::Index p = 0; p < out.rows(); ++p) {
       values[offset + p] = out(p, 0);
@@ -156,12 +157,17 @@ std::vector<float> SliceEvaluator::analytic(int field) {
     const size_t offset = static_cast<size_t>(first) * plane_.width;
     for (Eigen::Index p = 0; p < points.rows(); ++p) {
       const Eigen::Vector3d x = points.row(p).transpose().cast<double>();
-      float best = 0.f;
+      std::vector<Eigen::Vector4d> samples(count, Eigen::Vector4d::Zero());
       for (int i = lo; i < hi; ++i) {
-        best = std::max(
-            best, static_cast<float>(fields_.fields[i].value(to_bind_[i] * x)));
+        double value = 0;
+        Eigen::Vector3d gradient;
+        fields_.fields[i].evaluate(to_bind_[i] * x, value, gradient);
+        samples[i][0] = value;
+        // Back to the posed frame: the transpose of the linear part.
+        samples[i].tail<3>() = to_bind_[i].linear().transpose() * gradient;
       }
-      values[offset + p] = best;
+      values[offset + p] =
+          static_cast<float>(composeExact(fields_.composition, samples)[0]);
     }
   });
   analytic_ms_ += millisecondsSince(start);

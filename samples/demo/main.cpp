@@ -179,7 +179,8 @@ FieldRow runFields(const std::string& rig_name, const isk::Rig& rig,
   std::unique_ptr<isk::ClFieldEvaluation> evaluation;
   if (context && row.fields > 0) {
     evaluation = std::make_unique<isk::ClFieldEvaluation>(
-        context, fields.grids, rig.skeleton.jointCount());
+        context, fields.grids, rig.skeleton.jointCount(),
+        isk::FieldStorage::kAuto, &fields.composition);
     row.storage = isk::fieldStorageName(evaluation->storage());
     row.max_difference = 0.0;
   }
@@ -188,7 +189,7 @@ FieldRow runFields(const std::string& rig_name, const isk::Rig& rig,
   for (const Pose& pose : poses) {
     if (evaluation) {
       const isk::Matrix4Xf reference = isk::evaluateComposedField(
-          fields.grids, pose.skinning, pose.positions, fields.composition);
+          fields.grids, pose.skinning, pose.positions, &fields.composition);
       isk::Matrix4Xf opencl;
       evaluation->evaluate(pose.skinning, pose.positions, opencl);
       row.max_difference = std::max<double>(

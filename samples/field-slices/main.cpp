@@ -250,9 +250,9 @@ int run(const Options& options) {
 
   Picture composed;
   composed.file = "composed.png";
-  composed.what = std::string("composed field, ") +
-                  isk::fieldCompositionName(fields.composition) + " of " +
-                  std::to_string(field_count) + " fields";
+  composed.what =
+      "composed field of " + std::to_string(field_count) + " fields (" +
+      isk::describeComposition(fields.composition, rig.skeleton) + ")";
   {
     const std::vector<float> baked = evaluator.baked(SliceEvaluator::kComposed);
     const std::vector<float> exact =
@@ -293,8 +293,8 @@ int run(const Options& options) {
                   : "the baked grids (trilinear)")
      << "; grids " << options.grid << "^3 per field, "
      << fixed(fields.grids.bytes() / (1024.0 * 1024.0), 2) << " MiB\n"
-     << "- composition: " << isk::fieldCompositionName(fields.composition)
-     << " (max)\n"
+     << "- composition: "
+     << isk::describeComposition(fields.composition, rig.skeleton) << "\n"
      << "- plane: through " << formatVector(plane.origin) << " (centroid of "
      << view.joints.size() << " joints), spanned by " << plane.how << "\n"
      << "  - u (image right) = " << formatVector(plane.u) << "\n"

@@ -7,13 +7,16 @@
 // there (isk/field_grid.hpp); its gradient comes back to model space by the
 // transpose of that inverse's linear part (the rotation for a rigid pose).
 //
-// Composition: the union (max; the gradient is the largest field's). The
-// composition is an enum so that the operators of Appendix A plug in here.
+// Composition (isk/field_composition.hpp): the max of every field and of
+// every blend or bulge pair of the character's Composition; without one, the
+// union of all fields (max; the gradient is the largest field's). Only fields
+// whose posed bounding sphere contains the point are sampled (broad phase).
 // The OpenCL evaluation (isk/cl/field_evaluation.hpp) does the same job.
 #pragma once
 
 #include <vector>
 
+#include "isk/field_composition.hpp"
 #include "isk/field_grid.hpp"
 #include "isk/types.hpp"
 #include "isk/validation.hpp"
@@ -23,19 +26,22 @@ namespace isk {
 // #rows by 4 float: value, gradient x y z.
 using Matrix4Xf = Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor>;
 
-enum class FieldComposition { kUnion };
-const char* fieldCompositionName(FieldComposition composition);  // "union"
-
 // Model-space -> bone-frame transform of every field for a pose (#fields),
 // from the skinning transforms (#joints).
 std::vector<Eigen::Affine3f> fieldTransforms(const FieldGridSet& fields,
                                              const TransformList& skinning);
+// Each field's bounding sphere (fieldBoundingSphere) in model space for the
+// model -> bone transforms `to_bone` (#fields): centre xyz, w = squared
+// radius (scaled by the transform's largest stretch).
+std::vector<Eigen::Vector4f> posedFieldSpheres(
+    const FieldGridSet& fields, const std::vector<Eigen::Affine3f>& to_bone);
 
 struct FieldEvaluationJob {
   const FieldGridSet* fields = nullptr;
   const TransformList* skinning = nullptr;  // #joints
   const Matrix3Xf* points = nullptr;        // #P by 3, model space
-  FieldComposition composition = FieldComposition::kUnion;
+  // Built for these fields (buildComposition); nullptr: union of all fields.
+  const Composition* composition = nullptr;
   Matrix4Xf* out_composed = nullptr;  // resized to #P by 4
   // Optional: resized to (#P * #fields) by 4, row p * #fields + i.
   Matrix4Xf* out_per_field = nullptr;
@@ -50,14 +56,14 @@ struct FieldEvaluationJob {
 Matrix4Xf evaluateComposedField(const FieldGridSet& fields,
                                 const TransformList& skinning,
                                 const Matrix3Xf& points,
-                                FieldComposition composition);
+                                const Composition* composition = nullptr);
 
 // Every vertex's value of the composed field at the bind pose (the iso value
 // it is projected back to while animating), #V. `outside` (when given)
 // receives the vertices outside every field's support (value 0).
 std::vector<float> computeIsoValues(const FieldGridSet& fields,
                                     const Matrix3Xf& rest_positions,
-                                    FieldComposition composition,
+                                    const Composition* composition,
                                     std::vector<int>* outside = nullptr);
 
 }  // namespace isk

@@ -25,22 +25,25 @@ namespace isk {
 struct ImplicitFieldsOptions {
   BoneSamplingOptions sampling;
   int grid_resolution = 32;  // nodes per axis of each baked field, 2..256
-  FieldComposition composition = FieldComposition::kUnion;
+  // Operators per joint (union by default); the iso values are taken in
+  // the composed field.
+  CompositionOptions composition;
   int threads = 0;  // fitting and baking threads; 0: all hardware threads
   // Called after sampling, before fitting, with the samples of every bone
   // that has a part (joint order): add or remove points here.
   std::function<void(std::vector<BoneSamples>&)> edit_samples;
-  // Progress: `stage` is "partition", "sampling", "fitting", "baking" or
-  // "iso values"; `fraction` grows from 0 to 1 within a stage. Called from
-  // the calling thread.
+  // Progress: `stage` is "partition", "sampling", "fitting", "baking",
+  // "operators" (tables baked once per process) or "iso values"; `fraction`
+  // grows from 0 to 1 within a stage. Called from the calling thread.
   std::function<void(const char* stage, float fraction)> progress;
 };
 
 struct ImplicitFieldsTimes {
   double partition_ms = 0, sampling_ms = 0, fitting_ms = 0, baking_ms = 0,
-         iso_ms = 0;
+         operators_ms = 0, iso_ms = 0;
   double total() const {
-    return partition_ms + sampling_ms + fitting_ms + baking_ms + iso_ms;
+    return partition_ms + sampling_ms + fitting_ms + baking_ms + operators_ms +
+           iso_ms;
   }
 };
 
@@ -49,7 +52,7 @@ struct ImplicitFields {
   std::vector<BoneSamples> samples;  // per field
   std::vector<BoneField> fields;     // per field, joint order
   FieldGridSet grids;                // per field
-  FieldComposition composition = FieldComposition::kUnion;
+  Composition composition;
   std::vector<float> iso_values;      // #V
   std::vector<int> outside_vertices;  // vertices outside every support
   std::vector<std::string> warnings;

@@ -68,6 +68,36 @@ void validateFields(const FieldGridSet& fields, int joint_count) {
   }
 }
 
+void validateComposition(const Composition& composition, int field_count) {
+  for (const FieldPair& p : composition.pairs)
+    if (p.field_a < 0 || p.field_b < 0 || p.field_a >= field_count ||
+        p.field_b >= field_count)
+      invalid("the composition's pair at joint " + std::to_string(p.joint) +
+              " pairs fields " + std::to_string(p.field_a) + " and " +
+              std::to_string(p.field_b) + " but the set has " +
+              std::to_string(field_count) + " (built for other fields?)");
+  const int n = composition.table_resolution;
+  for (size_t t = 0; t < composition.tables.size(); ++t) {
+    const auto& table = composition.tables[t];
+    if (!table || table->resolution != n ||
+        table->nodes.size() != 4 * static_cast<size_t>(n) * n * n)
+      invalid("operator table " + std::to_string(t) + " is missing or not " +
+              std::to_string(n) + "^3 float4");
+  }
+  for (int k : composition.blended_pairs) {
+    const FieldPair& p = composition.pairs.at(k);
+    if (p.table < 0 || p.table >= static_cast<int>(composition.tables.size()))
+      invalid("the pair at joint " + std::to_string(p.joint) +
+              " has no operator table");
+    if (p.controller < 0 ||
+        p.controller >= static_cast<int>(composition.controllers.size()) ||
+        composition.controllers[p.controller].theta.size() !=
+            static_cast<size_t>(kControllerSamples))
+      invalid("the pair at joint " + std::to_string(p.joint) + " has no " +
+              std::to_string(kControllerSamples) + "-sample controller");
+  }
+}
+
 }  // namespace
 
 const char* fieldStorageName(FieldStorage storage) {
@@ -84,13 +114,20 @@ const char* fieldStorageName(FieldStorage storage) {
 
 ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
                                      const FieldGridSet& fields,
-                                     int joint_count, FieldStorage storage)
+                                     int joint_count, FieldStorage storage,
+                                     const Composition* composition)
     : context_(std::move(context)),
       field_count_(fields.fieldCount()),
       resolution_(fields.resolution),
       joint_count_(joint_count) {
   if (!context_) invalid("no context");
   validateFields(fields, joint_count);
+  if (composition) {
+    validateComposition(*composition, field_count_);
+    pair_count_ = static_cast<int>(composition->blended_pairs.size());
+    table_count_ = static_cast<int>(composition->tables.size());
+    table_resolution_ = composition->table_resolution;
+  }
   layout_.resolution = fields.resolution;
   layout_.field_of_joint = fields.field_of_joint;
   layout_.grids.reserve(fields.grids.size());
@@ -133,6 +170,7 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
       uploadImage(fields);
     else
       uploadBuffer(fields);
+    uploadComposition(composition);
     params_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                          params_staging_.size() * sizeof(float),
                          params_staging_.data());
@@ -217,8 +255,16 @@ void ClFieldEvaluation::chooseStorage(FieldStorage requested,
           }
         }
       }
+      const size_t table_depth =
+          static_cast<size_t>(std::max(table_count_, 1)) * table_resolution_;
       if (!rgba_float) {
         problem = "the device has no CL_RGBA / CL_FLOAT 3D images";
+      } else if (table_depth > device.getInfo<CL_DEVICE_IMAGE3D_MAX_DEPTH>() ||
+                 static_cast<size_t>(table_resolution_) >
+                     device.getInfo<CL_DEVICE_IMAGE3D_MAX_WIDTH>()) {
+        problem = std::to_string(table_count_) + " operator tables of " +
+                  std::to_string(table_resolution_) +
+                  "^3 exceed CL_DEVICE_IMAGE3D_MAX_*";
       } else if (tx == 0) {
         problem = "an atlas of " + std::to_string(count) + " tiles of " +
                   std::to_string(n) + "^3 exceeds CL_DEVICE_IMAGE3D_MAX_* (" +
@@ -281,6 +327,80 @@ void ClFieldEvaluation::uploadBuffer(const FieldGridSet& fields) {
   field_bytes_ = nodes.size() * sizeof(float);
 }
 
+void ClFieldEvaluation::uploadComposition(const Composition* composition) {
+  const cl::Context& ctx = context_->context();
+  // Pairs and controllers; one dummy element when there are none (a kernel
+  // argument must be a valid buffer).
+  std::vector<cl_int> pairs(4 * std::max(pair_count_, 1), 0);
+  std::vector<float> controllers(kControllerSamples, 0.f);
+  if (composition) {
+    controllers.assign(std::max<size_t>(composition->controllers.size(), 1) *
+                           kControllerSamples,
+                       0.f);
+    for (size_t c = 0; c < composition->controllers.size(); ++c)
+      std::copy(composition->controllers[c].theta.begin(),
+                composition->controllers[c].theta.end(),
+                controllers.begin() + c * kControllerSamples);
+    for (int k = 0; k < pair_count_; ++k) {
+      const FieldPair& p = composition->pairs[composition->blended_pairs[k]];
+      pairs[4 * k + 0] = p.field_a;
+      pairs[4 * k + 1] = p.field_b;
+      pairs[4 * k + 2] = p.table;
+      pairs[4 * k + 3] = p.controller * kControllerSamples;
+    }
+  }
+  pairs_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                      pairs.size() * sizeof(cl_int), pairs.data());
+  controllers_ =
+      cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                 controllers.size() * sizeof(float), controllers.data());
+  composition_bytes_ =
+      pairs.size() * sizeof(cl_int) + controllers.size() * sizeof(float);
+
+  // The tables one after the other (z of the image, offset of the buffer);
+  // a 2^3 zero table when there are none.
+  const size_t n = static_cast<size_t>(table_count_ ? table_resolution_ : 2);
+  const size_t per_table = 4 * n * n * n;
+  std::vector<float> nodes(per_table * std::max(table_count_, 1), 0.f);
+  for (int t = 0; t < table_count_; ++t)
+    std::copy(composition->tables[t]->nodes.begin(),
+              composition->tables[t]->nodes.end(),
+              nodes.begin() + per_table * t);
+  if (storage_ == FieldStorage::kImage)
+    operator_image_ =
+        cl::Image3D(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                    cl::ImageFormat(CL_RGBA, CL_FLOAT), n, n,
+                    n * std::max(table_count_, 1), 0, 0, nodes.data());
+  else
+    operator_nodes_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                                 nodes.size() * sizeof(float), nodes.data());
+  operator_bytes_ = nodes.size() * sizeof(float);
+}
+
+void ClFieldEvaluation::setCompositionArgs(cl::Kernel& kernel,
+                                           cl_uint first_index) const {
+  try {
+    if (storage_ == FieldStorage::kImage)
+      kernel.setArg(first_index, operator_image_);
+    else
+      kernel.setArg(first_index, operator_nodes_);
+    kernel.setArg(first_index + 1, pairs_);
+    kernel.setArg(first_index + 2, static_cast<cl_uint>(pair_count_));
+    kernel.setArg(first_index + 3, controllers_);
+    // As OperatorTable::sample and ThetaController::at compute them.
+    const float last = static_cast<float>(table_resolution_ - 1);
+    const cl_float4 scales = {{last, last / static_cast<float>(kThetaUnion),
+                               static_cast<float>(kControllerSamples - 1) /
+                                   static_cast<float>(3.14159265358979323846),
+                               0.f}};
+    kernel.setArg(first_index + 4, scales);
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClFieldEvaluation::setCompositionArgs (arguments " +
+                        std::to_string(first_index) + " to " +
+                        std::to_string(first_index + 4) + ")");
+  }
+}
+
 std::string ClFieldEvaluation::buildOptions() const {
   return storage_ == FieldStorage::kImage ? "-DISK_FIELDS_IMAGE=1"
                                           : "-DISK_FIELDS_IMAGE=0";
@@ -304,7 +424,8 @@ void ClFieldEvaluation::setFieldArgs(cl::Kernel& kernel,
 }
 
 size_t ClFieldEvaluation::bytes() const {
-  return field_bytes_ + params_staging_.size() * sizeof(float) + points_bytes_ +
+  return field_bytes_ + operator_bytes_ + composition_bytes_ +
+         params_staging_.size() * sizeof(float) + points_bytes_ +
          composed_bytes_ + per_field_bytes_ + kFloat4;
 }
 
@@ -319,10 +440,13 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
   // The reference's own transforms, so that both paths sample alike.
   const std::vector<Eigen::Affine3f> to_bone =
       fieldTransforms(layout_, skinning);
+  const std::vector<Eigen::Vector4f> spheres =
+      posedFieldSpheres(layout_, to_bone);
   for (int i = 0; i < field_count_; ++i) {
     float* p = &params_staging_[static_cast<size_t>(i) * kParamStride * 4];
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 4; ++c) p[4 * r + c] = to_bone[i].matrix()(r, c);
+    for (int c = 0; c < 4; ++c) p[24 + c] = spheres[i][c];
   }
   upload_ms_ = 0;
   if (field_count_ == 0) return;
@@ -377,9 +501,10 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
     kernel_.setArg(0, points);
     kernel_.setArg(1, static_cast<cl_uint>(point_count));
     setFieldArgs(kernel_, 2);
-    kernel_.setArg(6, composed_);
-    kernel_.setArg(7, per_field && field_count_ > 0 ? per_field_ : dummy_);
-    kernel_.setArg(8, static_cast<cl_uint>(per_field ? 1 : 0));
+    setCompositionArgs(kernel_, 6);
+    kernel_.setArg(11, composed_);
+    kernel_.setArg(12, per_field && field_count_ > 0 ? per_field_ : dummy_);
+    kernel_.setArg(13, static_cast<cl_uint>(per_field ? 1 : 0));
     cl::Event run;
     const auto start = std::chrono::steady_clock::now();
     context_->queue().enqueueNDRangeKernel(

@@ -2,17 +2,20 @@
 //
 // Host class of kernels/fields.cl: uploads a character's baked grids
 // (isk/field_grid.hpp) once, then per frame uploads only the fields'
-// model -> bone transforms and evaluates every field and their union at
-// posed points. Results match the CPU reference FieldEvaluationJob
-// (isk/field_evaluation.hpp): to float rounding on the buffer path, to the
-// device's texture filtering precision on the image path (GPUs interpolate
-// with 8-bit weights).
+// model -> bone transforms and evaluates every field and their composition
+// (isk/field_composition.hpp: blend and bulge pairs through the operator
+// tables, uploaded with the fields) at posed points. Results match the CPU
+// reference FieldEvaluationJob (isk/field_evaluation.hpp): to float rounding on
+// the buffer path, to the device's texture filtering precision on the image
+// path (GPUs interpolate with 8-bit weights).
 //
-// Storage of the grids (FieldStorage):
+// Storage of the grids and operator tables (FieldStorage):
 //   kImage   one read-only 3D image (CL_RGBA / CL_FLOAT) holding every field
-//            as an N^3 tile, sampled with the hardware's trilinear filter;
-//   kBuffer  one float4 buffer, field i at offset i * N^3, interpolated in
-//            the kernel exactly as FieldGrid::sampleLocal;
+//            as an N^3 tile, and one holding the operator tables stacked in
+//            z, sampled with the hardware's trilinear filter;
+//   kBuffer  float4 buffers, field i at offset i * N^3, table t at t * M^3,
+//            interpolated in the kernel exactly as FieldGrid::sampleLocal
+//            and OperatorTable::sample;
 //   kAuto    the environment variable ISK_FIELD_STORAGE=image|buffer when set
 //            (auto or empty: ignored; anything else: isk::Error
 //            kInvalidArgument), else kImage on GPU devices and kBuffer on
@@ -24,14 +27,16 @@
 // what is used and storageReason() why.
 //
 // Other kernels can sample the same data (kernels/fields.cl: functions
-// sample_field, compose_union, sample_composed): build them with
-// buildOptions(), put ISK_FIELD_PARAMS among their parameters (four
-// consecutive arguments: field data, field params, field count, resolution)
-// and bind those with setFieldArgs(kernel, first_index) after setPose().
-// The evaluate_fields kernel itself takes: 0 points (packed float3), 1 point
-// count, 2 field data, 3 field params, 4 field count, 5 resolution,
-// 6 composed output (float4 per point), 7 per-field output (float4 per point
-// and field, row p * F + i), 8 whether to write the per-field output.
+// sample_field, compose_pair, sample_composed): build them with
+// buildOptions(), put ISK_FIELD_PARAMS (four consecutive arguments: field
+// data, field params, field count, resolution) and ISK_COMPOSITION_PARAMS
+// (five: operator data, pairs, pair count, controllers, operator scales)
+// among their parameters and bind them with setFieldArgs(kernel, first) and
+// setCompositionArgs(kernel, first) after setPose(). The evaluate_fields
+// kernel itself takes: 0 points (packed float3), 1 point count, 2..5 the
+// field arguments, 6..10 the composition arguments, 11 composed output
+// (float4 per point), 12 per-field output (float4 per point and field, row
+// p * F + i), 13 whether to write the per-field output.
 #pragma once
 
 #include <array>
@@ -54,14 +59,17 @@ const char* fieldStorageName(FieldStorage storage);
 class ClFieldEvaluation {
  public:
   // float4 per field in the params buffer (kernels/fields.cl's layout).
-  static constexpr int kParamStride = 6;
+  static constexpr int kParamStride = 7;
 
   // Validates the grids against `joint_count` (the length of the transform
-  // lists evaluate() takes) and uploads them; isk::Error kInvalidArgument
-  // names the bad field, kOpenCl the failing call.
+  // lists evaluate() takes) and the composition (built for these fields by
+  // buildComposition; nullptr: the union of all fields) and uploads them;
+  // isk::Error kInvalidArgument names the bad field or pair, kOpenCl the
+  // failing call.
   ClFieldEvaluation(std::shared_ptr<ClContext> context,
                     const FieldGridSet& fields, int joint_count,
-                    FieldStorage storage = FieldStorage::kAuto);
+                    FieldStorage storage = FieldStorage::kAuto,
+                    const Composition* composition = nullptr);
 
   // Host path: evaluates at `points` (#P by 3, model space, posed) for the
   // pose `skinning` (#joints skinning transforms). out_composed: #P by 4
@@ -94,6 +102,9 @@ class ClFieldEvaluation {
   // arguments first_index .. first_index + 3 of `kernel` (a kernel of a
   // program built with buildOptions()).
   void setFieldArgs(cl::Kernel& kernel, cl_uint first_index) const;
+  // Binds operator data, pairs, pair count, controllers and operator scales
+  // to arguments first_index .. first_index + 4.
+  void setCompositionArgs(cl::Kernel& kernel, cl_uint first_index) const;
   // "-DISK_FIELDS_IMAGE=1" or "-DISK_FIELDS_IMAGE=0".
   std::string buildOptions() const;
 
@@ -107,6 +118,9 @@ class ClFieldEvaluation {
   const cl::Buffer& fieldParams() const { return params_; }
 
   int fieldCount() const { return field_count_; }
+  // Blend and bulge pairs evaluated per point, operator tables uploaded.
+  int pairCount() const { return pair_count_; }
+  int tableCount() const { return table_count_; }
   int resolution() const { return resolution_; }
   int jointCount() const { return joint_count_; }
   // Tiles of the image atlas per axis (1 1 1 on the buffer path).
@@ -114,8 +128,9 @@ class ClFieldEvaluation {
   // Device memory held: field data (the atlas with its unused tiles),
   // params, points and results.
   size_t bytes() const;
-  // Device memory of the field data alone.
+  // Device memory of the field data alone, and of the operator tables.
   size_t fieldBytes() const { return field_bytes_; }
+  size_t operatorBytes() const { return operator_bytes_; }
   // Kernel time of the last evaluation (profiling event, else host wall
   // time around the finished kernel), and its upload of the pose.
   double lastKernelMs() const { return kernel_ms_; }
@@ -128,6 +143,7 @@ class ClFieldEvaluation {
   void chooseStorage(FieldStorage requested, const FieldGridSet& fields);
   void uploadImage(const FieldGridSet& fields);
   void uploadBuffer(const FieldGridSet& fields);
+  void uploadComposition(const Composition* composition);
   void ensureOutputs(int point_count, bool per_field);
 
   std::shared_ptr<ClContext> context_;
@@ -142,6 +158,10 @@ class ClFieldEvaluation {
   cl::Image3D image_;
   cl::Buffer nodes_;
   cl::Buffer params_;
+  cl::Image3D operator_image_;
+  cl::Buffer operator_nodes_, pairs_, controllers_;
+  int pair_count_ = 0, table_count_ = 0, table_resolution_ = 2;
+  size_t operator_bytes_ = 0, composition_bytes_ = 0;
   std::vector<float> params_staging_;  // read by non-blocking writes
   cl::Buffer points_, composed_, per_field_, dummy_;
   size_t points_bytes_ = 0, composed_bytes_ = 0, per_field_bytes_ = 0;

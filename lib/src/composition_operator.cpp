@@ -1,0 +1,340 @@
+#include "isk/composition_operator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <utility>
+
+#include "isk/error.hpp"
+#include "parallel_for.hpp"
+
+namespace isk {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInnerUnion = 0.7;  // Appendix A: a union deeper inside
+
+double clamp01(double v) { return std::min(1.0, std::max(0.0, v)); }
+double clampTheta(double theta) {
+  return std::min(kThetaUnion, std::max(0.0, theta));
+}
+
+// k(C) and k'(C) of the blend's opening (header comment).
+struct Opening {
+  double k, dk;
+};
+Opening opening(double c, double t) {
+  if (c <= 0.5) return {t * c, t};
+  if (c < kInnerUnion)
+    return {0.5 * (7 - 5 * t) * c + 1.75 * (t - 1), 0.5 * (7 - 5 * t)};
+  return {c, 1};
+}
+
+// The blend with its larger argument first (x >= y): value and partials.
+OperatorValue blendOrdered(double x, double y, double theta) {
+  const double t = std::tan(clampTheta(theta));
+  // At x = 0 both fields vanish: the union's partials (the blend's are
+  // undefined at the origin, where it is homogeneous of degree 1).
+  if (x >= kInnerUnion || y < opening(x, t).k || x <= 0) return {x, 1, 0};
+  // Is (x, y) below the iso-curve C (inside its circle, or outside the
+  // quadrant the arc spans)? False at C = x, true at C = 0.7.
+  auto below = [&](double c) {
+    const Opening o = opening(c, t);
+    return x < o.k || y < o.k || std::hypot(x - o.k, y - o.k) < c - o.k;
+  };
+  double lo = x, hi = kInnerUnion;
+  for (int i = 0; i < 60 && hi - lo > 1e-13; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (below(mid) ? hi : lo) = mid;
+  }
+  const double c = 0.5 * (lo + hi);
+  const Opening o = opening(c, t);
+  const double d = std::hypot(x - o.k, y - o.k);
+  if (d < 1e-12) return {c, 0.5, 0.5};  // the corner (0.7, 0.7)
+  // Implicit function theorem on F(C, x, y) = d - (C - k(C)) = 0.
+  const double dF_dc = -o.dk * ((x - o.k) + (y - o.k)) / d - (1 - o.dk);
+  return {c, -((x - o.k) / d) / dF_dc, -((y - o.k) / d) / dF_dc};
+}
+
+bool blendRegionOrdered(double x, double y, double theta) {
+  const double t = std::tan(clampTheta(theta));
+  return x < kInnerUnion && y >= opening(x, t).k && t < 1;
+}
+
+// The bulge's terms (header comment).
+double bulgeQ(double m, double* dq) {
+  const double q = (m - 0.5) / 0.2;
+  if (std::abs(q) >= 1) {
+    *dq = 0;
+    return 0;
+  }
+  const double a = 1 - q * q;
+  *dq = -4 * q * a / 0.2;
+  return a * a;
+}
+double bulgeS(double m, double* ds) {
+  const double u = (m - 0.1) / 0.4;
+  if (u <= 0) {
+    *ds = 0;
+    return 0;
+  }
+  if (u >= 1) {
+    *ds = 0;
+    return 1;
+  }
+  *ds = 6 * u * (1 - u) / 0.4;
+  return u * u * (3 - 2 * u);
+}
+// g = x + A s Q(x) S(y) for any (x, y): for x >= y the operator, beyond the
+// diagonal its smooth continuation.
+OperatorValue bulgeBranch(double x, double y, double theta) {
+  const double s = 1 - clampTheta(theta) / kThetaUnion;
+  double dq = 0, ds = 0;
+  const double q = bulgeQ(x, &dq);
+  const double sy = bulgeS(y, &ds);
+  const double a = kBulgeAmplitude * s;
+  return {x + a * q * sy, 1 + a * dq * sy, a * q * ds};
+}
+
+// The branch a table stores at (x, y): the operator with x as its larger
+// argument, continued smoothly beyond the diagonal.
+OperatorValue tableBranch(CompositionOperator op, double x, double y,
+                          double theta) {
+  if (op == CompositionOperator::kBulge) return bulgeBranch(x, y, theta);
+  if (y <= x) return blendOrdered(x, y, theta);
+  // Beyond the diagonal: where the blend is smooth across it, the blend
+  // itself; else the union's branch, x.
+  if (blendRegionOrdered(y, x, theta)) return blendOperator(x, y, theta);
+  return {x, 1, 0};
+}
+
+// Swaps the partials back when the arguments were ordered.
+OperatorValue unordered(OperatorValue v, bool swapped) {
+  if (swapped) std::swap(v.dg_df1, v.dg_df2);
+  return v;
+}
+
+ThetaController sampledController(double (*theta)(double alpha,
+                                                  double parameter),
+                                  double parameter) {
+  ThetaController c;
+  c.theta.resize(kControllerSamples);
+  for (int i = 0; i < kControllerSamples; ++i)
+    c.theta[i] = static_cast<float>(
+        theta(kPi * i / (kControllerSamples - 1), parameter));
+  return c;
+}
+
+}  // namespace
+
+const char* compositionOperatorName(CompositionOperator op) {
+  switch (op) {
+    case CompositionOperator::kUnion:
+      return "union";
+    case CompositionOperator::kBlend:
+      return "blend";
+    case CompositionOperator::kBulge:
+      return "bulge";
+  }
+  return "unknown";
+}
+
+bool parseCompositionOperator(const std::string& name,
+                              CompositionOperator* op) {
+  for (CompositionOperator candidate :
+       {CompositionOperator::kUnion, CompositionOperator::kBlend,
+        CompositionOperator::kBulge}) {
+    if (name == compositionOperatorName(candidate)) {
+      if (op) *op = candidate;
+      return true;
+    }
+  }
+  return false;
+}
+
+OperatorValue unionOperator(double f1, double f2) {
+  return f1 >= f2 ? OperatorValue{f1, 1, 0} : OperatorValue{f2, 0, 1};
+}
+
+OperatorValue blendOperator(double f1, double f2, double theta) {
+  f1 = clamp01(f1);
+  f2 = clamp01(f2);
+  const bool swapped = f2 > f1;
+  return unordered(
+      swapped ? blendOrdered(f2, f1, theta) : blendOrdered(f1, f2, theta),
+      swapped);
+}
+
+OperatorValue bulgeOperator(double f1, double f2, double theta) {
+  f1 = clamp01(f1);
+  f2 = clamp01(f2);
+  const bool swapped = f2 > f1;
+  return unordered(
+      swapped ? bulgeBranch(f2, f1, theta) : bulgeBranch(f1, f2, theta),
+      swapped);
+}
+
+OperatorValue evaluateOperator(CompositionOperator op, double f1, double f2,
+                               double theta) {
+  switch (op) {
+    case CompositionOperator::kBlend:
+      return blendOperator(f1, f2, theta);
+    case CompositionOperator::kBulge:
+      return bulgeOperator(f1, f2, theta);
+    case CompositionOperator::kUnion:
+      break;
+  }
+  return unionOperator(f1, f2);
+}
+
+bool inBlendingRegion(CompositionOperator op, double f1, double f2,
+                      double theta) {
+  const double x = std::max(f1, f2), y = std::min(f1, f2);
+  switch (op) {
+    case CompositionOperator::kBlend:
+      return blendRegionOrdered(x, y, theta);
+    case CompositionOperator::kBulge:
+      return x > 0.3 && x < kInnerUnion && y > 0.1 &&
+             clampTheta(theta) < kThetaUnion;
+    case CompositionOperator::kUnion:
+      break;
+  }
+  return false;
+}
+
+float ThetaController::at(float alpha) const {
+  const int n = static_cast<int>(theta.size());
+  if (n == 0) return static_cast<float>(kThetaUnion);
+  if (n == 1) return theta[0];
+  const float scale = static_cast<float>(n - 1) / static_cast<float>(kPi);
+  const float a =
+      std::min(std::max(alpha * scale, 0.f), static_cast<float>(n - 1));
+  const int i = std::min(static_cast<int>(a), n - 2);
+  const float t = a - static_cast<float>(i);
+  return theta[i] + t * (theta[i + 1] - theta[i]);
+}
+
+ThetaController unionController() {
+  return sampledController([](double, double) { return kThetaUnion; }, 0);
+}
+
+ThetaController blendController(double theta_blend) {
+  return sampledController(
+      [](double alpha, double theta_b) {
+        if (alpha >= kPi / 2) return kThetaUnion;
+        const double s = std::sin(2 * alpha);
+        return kThetaUnion - (kThetaUnion - theta_b) * s * s;
+      },
+      clampTheta(theta_blend));
+}
+
+ThetaController bulgeController(double strength) {
+  return sampledController(
+      [](double alpha, double k) {
+        const double s = alpha >= kPi / 2 ? 1.0 : std::sin(alpha);
+        return kThetaUnion - k * kThetaUnion * s * s;
+      },
+      clamp01(strength));
+}
+
+ThetaController defaultController(CompositionOperator op) {
+  switch (op) {
+    case CompositionOperator::kBlend:
+      return blendController();
+    case CompositionOperator::kBulge:
+      return bulgeController();
+    case CompositionOperator::kUnion:
+      break;
+  }
+  return unionController();
+}
+
+void OperatorTable::sample(float f1, float f2, float theta,
+                           float out[3]) const {
+  const bool first = f1 >= f2;
+  const float x = first ? f1 : f2;
+  const float y = first ? f2 : f1;
+  const float last = static_cast<float>(resolution - 1);
+  const float theta_scale = last / static_cast<float>(kThetaUnion);
+  const float u[3] = {std::min(std::max(x, 0.f), 1.f) * last,
+                      std::min(std::max(y, 0.f), 1.f) * last,
+                      std::min(std::max(theta * theta_scale, 0.f), last)};
+  int i[3];
+  float t[3];
+  for (int a = 0; a < 3; ++a) {
+    i[a] = std::min(static_cast<int>(u[a]), resolution - 2);
+    t[a] = u[a] - static_cast<float>(i[a]);
+  }
+  const size_t n = static_cast<size_t>(resolution);
+  const float* base = nodes.data() + 4 * (i[0] + n * (i[1] + n * i[2]));
+  const size_t dy = 4 * n, dz = 4 * n * n;
+  float value[3];
+  // Same order of operations as the kernel's buffer path.
+  for (int c = 0; c < 3; ++c) {
+    const float* b = base + c;
+    const float x00 = b[0] + t[0] * (b[4] - b[0]);
+    const float x10 = b[dy] + t[0] * (b[dy + 4] - b[dy]);
+    const float x01 = b[dz] + t[0] * (b[dz + 4] - b[dz]);
+    const float x11 = b[dy + dz] + t[0] * (b[dy + dz + 4] - b[dy + dz]);
+    const float y0 = x00 + t[1] * (x10 - x00);
+    const float y1 = x01 + t[1] * (x11 - x01);
+    value[c] = y0 + t[2] * (y1 - y0);
+  }
+  out[0] = value[0];
+  out[1] = first ? value[1] : value[2];
+  out[2] = first ? value[2] : value[1];
+}
+
+OperatorTable bakeOperatorTable(CompositionOperator op, int resolution,
+                                int threads,
+                                const std::function<void(float)>& progress) {
+  if (op == CompositionOperator::kUnion)
+    throw Error(ErrorCode::kInvalidArgument,
+                "bakeOperatorTable: the union is max(f1, f2), it has no table");
+  if (resolution < 2 || resolution > 512)
+    throw Error(ErrorCode::kInvalidArgument, "bakeOperatorTable: resolution " +
+                                                 std::to_string(resolution) +
+                                                 " is outside 2..512");
+  OperatorTable table;
+  table.op = op;
+  table.resolution = resolution;
+  const size_t n = static_cast<size_t>(resolution);
+  table.nodes.assign(4 * n * n * n, 0.f);
+  const double last = resolution - 1;
+  // One theta slice per work item.
+  detail::parallelFor(
+      resolution, detail::threadCount(threads),
+      [&](int k) {
+        const double theta = kThetaUnion * k / last;
+        for (size_t j = 0; j < n; ++j) {
+          for (size_t i = 0; i < n; ++i) {
+            const OperatorValue v = tableBranch(op, i / last, j / last, theta);
+            float* node = &table.nodes[4 * (i + n * (j + n * k))];
+            node[0] = static_cast<float>(v.g);
+            node[1] = static_cast<float>(v.dg_df1);
+            node[2] = static_cast<float>(v.dg_df2);
+          }
+        }
+      },
+      progress);
+  return table;
+}
+
+std::shared_ptr<const OperatorTable> sharedOperatorTable(
+    CompositionOperator op, int resolution,
+    const std::function<void(float)>& progress) {
+  static std::mutex mutex;
+  static std::map<std::pair<int, int>, std::shared_ptr<const OperatorTable>>
+      cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto& slot = cache[{static_cast<int>(op), resolution}];
+  if (!slot)
+    slot = std::make_shared<const OperatorTable>(
+        bakeOperatorTable(op, resolution, 0, progress));
+  else if (progress)
+    progress(1.f);
+  return slot;
+}
+
+}  // namespace isk
