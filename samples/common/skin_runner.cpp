@@ -208,8 +208,8 @@ FrameSkinner::FrameSkinner(const Rig& rig, const std::string& device) {
                                                rig.skeleton.jointCount());
     return;
   }
-  auto context = ClContext::create(device == "auto" ? "" : device);
-  device_ = std::make_unique<ClSkinning>(context, rig.mesh, rig.weights,
+  context_ = ClContext::create(device == "auto" ? "" : device);
+  device_ = std::make_unique<ClSkinning>(context_, rig.mesh, rig.weights,
                                          rig.skeleton.jointCount());
 }
 

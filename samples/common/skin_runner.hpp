@@ -73,7 +73,17 @@ class FrameSkinner {
     return device_ ? device_->lastTimes() : reference_->lastTimes();
   }
 
+  // The OpenCL context (null for the reference), so that other device work
+  // such as isk::ClFieldEvaluation shares its queue and buffers.
+  std::shared_ptr<ClContext> sharedContext() const { return context_; }
+  // The last skin()'s positions on the device, #V * 3 packed floats (null
+  // for the reference).
+  const cl::Buffer* devicePositions() const {
+    return device_ ? &device_->positionsBuffer() : nullptr;
+  }
+
  private:
+  std::shared_ptr<ClContext> context_;      // set for OpenCL
   std::unique_ptr<ClSkinning> device_;      // set for OpenCL
   std::unique_ptr<CpuSkinning> reference_;  // set for the reference
 };

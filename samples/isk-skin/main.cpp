@@ -1,15 +1,30 @@
 // isk-skin: skins a rig over an animation clip, writes the frames and a JSON
-// report of timings and quality. See README.md for the options.
+// report of timings and quality. With composition operators chosen
+// (--operator, --joint-operator, ...), it also builds the rig's implicit
+// fields and measures each frame's iso drift in the composed field. See
+// README.md for the options.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
+#include "field_pictures.hpp"
+#include "isk/cl/field_evaluation.hpp"
+#include "isk/composition_operator.hpp"
 #include "isk/error.hpp"
 #include "isk/export.hpp"
+#include "isk/field_composition.hpp"
+#include "isk/field_evaluation.hpp"
+#include "isk/implicit_fields.hpp"
+#include "isk/pose.hpp"
 #include "isk/procedural.hpp"
 #include "skin_runner.hpp"
 
@@ -31,7 +46,18 @@ struct Options {
   std::string report;
   std::string format = "obj";
   bool overwrite = false;
+
+  // Composition operators (the implicit fields are built only when one of
+  // these options is given: `composition_given`).
+  std::string default_operator = "union";
+  std::vector<std::string> joint_operators;  // NAME=OP, as given
+  double bulge_strength = 1;
+  double blend_theta = 0;
+  bool composition_given = false;
+  bool bulge_strength_given = false, blend_theta_given = false;
 };
+
+constexpr double kMiB = 1024.0 * 1024.0;
 
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(
@@ -45,10 +71,203 @@ bool samePath(const fs::path& a, const fs::path& b) {
   return !ec && same;
 }
 
+// The operator choices of the command line. Joint names may hold '=', ' ' or
+// ':' (mixamorig:LeftForeArm), so NAME=OP splits at the last '='. Throws
+// isk::Error(kInvalidArgument) naming the bad argument.
+isk::CompositionOptions parseCompositionOptions(const Options& options) {
+  isk::CompositionOptions composition;
+  if (!isk::parseCompositionOperator(options.default_operator,
+                                     &composition.default_operator)) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     "--operator '" + options.default_operator +
+                         "': expected union, blend or bulge");
+  }
+  // CLI11's range checks let NaN through.
+  if (!(options.bulge_strength >= 0 && options.bulge_strength <= 1)) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     "--bulge-strength " +
+                         std::to_string(options.bulge_strength) +
+                         ": expected a value in [0, 1]");
+  }
+  if (!(options.blend_theta >= 0 && options.blend_theta <= isk::kThetaUnion)) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     "--blend-theta " + std::to_string(options.blend_theta) +
+                         ": expected radians in [0, pi/4]");
+  }
+  composition.bulge_strength = options.bulge_strength;
+  composition.blend_theta = options.blend_theta;
+  for (const std::string& arg : options.joint_operators) {
+    const std::string where = "--joint-operator '" + arg + "': ";
+    const size_t equals = arg.rfind('=');
+    if (equals == std::string::npos) {
+      throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                       where + "expected NAME=OP (OP: union, blend or bulge)");
+    }
+    const std::string name = arg.substr(0, equals);
+    const std::string op_name = arg.substr(equals + 1);
+    if (name.empty()) {
+      throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                       where + "the joint name before '=' is empty");
+    }
+    isk::CompositionOperator op;
+    if (!isk::parseCompositionOperator(op_name, &op)) {
+      throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                       where + "unknown operator '" + op_name +
+                           "' (expected union, blend or bulge)");
+    }
+    // Two different choices for one joint are a mistake, not "last wins".
+    const auto [it, inserted] = composition.joint_operators.emplace(name, op);
+    if (!inserted && it->second != op) {
+      throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                       where + "joint '" + name + "' already has operator " +
+                           isk::compositionOperatorName(it->second));
+    }
+  }
+  return composition;
+}
+
+// A controller option without a joint of its operator changes nothing: say
+// so rather than let it pass silently.
+void warnUnusedControllers(const Options& options,
+                           const isk::CompositionOptions& composition) {
+  auto used = [&](isk::CompositionOperator op) {
+    if (composition.default_operator == op) return true;
+    for (const auto& entry : composition.joint_operators) {
+      if (entry.second == op) return true;
+    }
+    return false;
+  };
+  if (options.bulge_strength_given && !used(isk::CompositionOperator::kBulge)) {
+    std::cerr << "isk-skin: warning: --bulge-strength has no effect: no joint "
+                 "uses bulge\n";
+  }
+  if (options.blend_theta_given && !used(isk::CompositionOperator::kBlend)) {
+    std::cerr << "isk-skin: warning: --blend-theta has no effect: no joint "
+                 "uses blend\n";
+  }
+}
+
+// The rig's implicit fields composed with the chosen operators, evaluated at
+// the skinned vertices after each frame: each vertex's drift from its iso
+// value |f(v) - iso_v| over the vertices with iso_v > 0 (the others lie
+// outside every field). This drift is what the implicit method's projection
+// corrects, and it depends on the operators.
+class IsoDriftProbe {
+ public:
+  IsoDriftProbe(const isk::Rig& rig, const isk::CompositionOptions& composition,
+                FrameSkinner& skinner)
+      : rig_(rig), skinner_(skinner) {
+    isk::ImplicitFieldsOptions options;
+    options.composition = composition;
+    const auto start = std::chrono::steady_clock::now();
+    fields_ = isk::samples::buildFieldsWithProgress(
+        rig, options, "isk-skin: building fields", "isk-skin: warning: ");
+    build_ms_ = millisecondsSince(start);
+    for (int v = 0; v < static_cast<int>(fields_.iso_values.size()); ++v) {
+      if (fields_.iso_values[v] > 0) tracked_.push_back(v);
+    }
+    if (fields_.grids.fieldCount() > 0 && !skinner.isReference()) {
+      const auto upload_start = std::chrono::steady_clock::now();
+      device_ = std::make_unique<isk::ClFieldEvaluation>(
+          skinner.sharedContext(), fields_.grids, rig.skeleton.jointCount(),
+          isk::FieldStorage::kAuto, &fields_.composition);
+      upload_ms_ = millisecondsSince(upload_start);
+      // One untimed run at the bind pose: PoCL compiles the kernel on its
+      // first launch, which would otherwise land in the first frame's time.
+      device_->evaluate(isk::bindPoseSkinning(rig.skeleton), rig.mesh.positions,
+                        values_);
+    }
+  }
+
+  // Evaluates the composed field at the skinner's last output (`positions`
+  // on the host, the same positions on the device) posed by `skinning`.
+  void measure(const isk::TransformList& skinning,
+               const isk::Matrix3Xf& positions) {
+    if (fields_.grids.fieldCount() == 0 || tracked_.empty()) return;
+    const auto start = std::chrono::steady_clock::now();
+    if (device_) {
+      device_->evaluate(skinning, *skinner_.devicePositions(),
+                        static_cast<int>(positions.rows()));
+      device_->readComposed(values_);
+    } else {
+      values_ = isk::evaluateComposedField(fields_.grids, skinning, positions,
+                                           &fields_.composition);
+    }
+    field_ms_.push_back(millisecondsSince(start));
+    double sum = 0, largest = 0;
+    for (const int v : tracked_) {
+      const double drift =
+          std::abs(double(values_(v, 0)) - double(fields_.iso_values[v]));
+      sum += drift;
+      largest = std::max(largest, drift);
+    }
+    drift_mean_.push_back(sum / tracked_.size());
+    drift_max_.push_back(largest);
+  }
+
+  bool measured() const { return !drift_mean_.empty(); }
+  double driftMean() const {
+    return isk::samples::summarize(drift_mean_).median;
+  }
+  double driftMax() const {
+    return *std::max_element(drift_max_.begin(), drift_max_.end());
+  }
+  double fieldMs() const { return isk::samples::summarize(field_ms_).median; }
+  std::string describe() const {
+    return isk::describeComposition(fields_.composition, rig_.skeleton);
+  }
+
+  nlohmann::json report() const {
+    const isk::Composition& composition = fields_.composition;
+    nlohmann::json operators = nlohmann::json::object();
+    for (const int index : composition.blended_pairs) {
+      const isk::FieldPair& pair = composition.pairs[index];
+      operators[rig_.skeleton.joints[pair.joint].name] =
+          isk::compositionOperatorName(pair.op);
+    }
+    nlohmann::json section;
+    section["composition"] = describe();
+    section["operators"] = operators;
+    section["fields"] = fields_.grids.fieldCount();
+    section["build_ms"] = build_ms_;
+    section["upload_ms"] = upload_ms_;
+    section["operator_tables_mib"] = composition.tableBytes() / kMiB;
+    section["evaluation"] =
+        device_ ? std::string("opencl (") +
+                      isk::fieldStorageName(device_->storage()) + ")"
+                : std::string("reference");
+    section["tracked_vertices"] = tracked_.size();
+    if (measured()) {
+      section["iso_drift"] = {{"mean", driftMean()}, {"max", driftMax()}};
+      section["field_ms"] = fieldMs();
+    } else {
+      section["iso_drift"] = nullptr;
+      section["field_ms"] = nullptr;
+      section["drift_note"] =
+          fields_.grids.fieldCount() == 0
+              ? "the rig has no implicit field: nothing to measure"
+              : "no vertex lies inside a field's support: nothing to "
+                "measure";
+    }
+    return section;
+  }
+
+ private:
+  const isk::Rig& rig_;
+  FrameSkinner& skinner_;
+  isk::ImplicitFields fields_;
+  std::vector<int> tracked_;  // vertices with iso value > 0
+  std::unique_ptr<isk::ClFieldEvaluation> device_;  // null: CPU reference
+  isk::Matrix4Xf values_;
+  std::vector<double> drift_mean_, drift_max_, field_ms_;
+  double build_ms_ = 0, upload_ms_ = 0;
+};
+
 nlohmann::json makeReport(const Options& options, const isk::Rig& rig,
                           const isk::AnimationClip& clip,
                           const FrameSkinner& skinner, double load_ms,
-                          double setup_ms, const RunResult& result) {
+                          double setup_ms, const RunResult& result,
+                          const IsoDriftProbe* probe) {
   nlohmann::json report;
   report["input"] = options.input;
   report["vertices"] = rig.mesh.vertexCount();
@@ -91,6 +310,7 @@ nlohmann::json makeReport(const Options& options, const isk::Rig& rig,
   report["out"] = options.out_dir.empty() ? nlohmann::json(nullptr)
                                           : nlohmann::json(options.out_dir);
   report["format"] = options.format;
+  if (probe) report["implicit"] = probe->report();
   return report;
 }
 
@@ -101,7 +321,10 @@ int run(const Options& options) {
     }
     return 0;
   }
-  if (options.method == "implicit") {
+  // Operator choices are checked before anything heavy (and before the
+  // "not implemented" answer, so that a bad choice still says what is wrong).
+  const isk::CompositionOptions composition = parseCompositionOptions(options);
+  if (options.method == "implicit" && !options.composition_given) {
     std::cerr << "isk-skin: --method implicit is not implemented yet\n";
     return kNotImplementedExit;
   }
@@ -117,6 +340,20 @@ int run(const Options& options) {
   for (const std::string& warning : rig.warnings) {
     std::cerr << "warning: " << warning << "\n";
   }
+  // The joint names need the rig; the rest was checked above.
+  if (options.composition_given) {
+    if (const isk::Validation valid =
+            isk::validateCompositionOptions(rig.skeleton, composition);
+        !valid) {
+      throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                       options.input + ": --joint-operator: " + valid.reason());
+    }
+  }
+  if (options.method == "implicit") {
+    std::cerr << "isk-skin: --method implicit is not implemented yet\n";
+    return kNotImplementedExit;
+  }
+  warnUnusedControllers(options, composition);
 
   std::string clip_note;
   const isk::AnimationClip clip =
@@ -147,14 +384,27 @@ int run(const Options& options) {
   run_options.out_dir = options.out_dir;
   run_options.format = format;
   run_options.progress = frames > 5;
+
+  std::unique_ptr<IsoDriftProbe> probe;
+  if (options.composition_given) {
+    probe = std::make_unique<IsoDriftProbe>(rig, composition, skinner);
+    // The frame's pose again (runFrames does not pass it on); the probe
+    // runs outside the frame timings.
+    run_options.on_frame = [&](int frame, const isk::Matrix3Xf& positions,
+                               const isk::Matrix3Xf&) {
+      probe->measure(isk::samples::clipSkinning(rig.skeleton, clip,
+                                                run_options.times[frame]),
+                     positions);
+    };
+  }
   const RunResult result =
       isk::samples::runFrames(rig, clip, skinner, run_options);
 
   if (!options.report.empty()) {
     const fs::path parent = fs::path(options.report).parent_path();
     if (!parent.empty()) fs::create_directories(parent);
-    const nlohmann::json report =
-        makeReport(options, rig, clip, skinner, load_ms, setup_ms, result);
+    const nlohmann::json report = makeReport(
+        options, rig, clip, skinner, load_ms, setup_ms, result, probe.get());
     isk::writeTextFile(options.report, report.dump(2) + "\n");
   }
 
@@ -174,6 +424,16 @@ int run(const Options& options) {
               << options.out_dir;
   }
   std::cerr << "\n";
+  if (probe) {
+    std::cerr << "isk-skin: implicit fields (" << probe->describe() << "): ";
+    if (probe->measured()) {
+      std::cerr << "iso drift mean " << probe->driftMean() << ", max "
+                << probe->driftMax() << "; field evaluation "
+                << probe->fieldMs() << " ms/frame\n";
+    } else {
+      std::cerr << "no iso drift to measure\n";
+    }
+  }
   return 0;
 }
 
@@ -226,7 +486,36 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--overwrite", options.overwrite,
                "replace the frame files of an earlier run in --out");
+  CLI::Option* const operator_option =
+      app.add_option("--operator", options.default_operator,
+                     "composition operator at every joint: union, blend or "
+                     "bulge; builds the implicit fields and reports the iso "
+                     "drift")
+          ->check(CLI::IsMember({"union", "blend", "bulge"}))
+          ->capture_default_str();
+  // One NAME=OP per occurrence, so that a following INPUT is not taken.
+  CLI::Option* const joint_operator_option =
+      app.add_option("--joint-operator", options.joint_operators,
+                     "NAME=OP: operator OP at the joint NAME (repeatable; "
+                     "split at the last '=')")
+          ->allow_extra_args(false);
+  CLI::Option* const bulge_option =
+      app.add_option("--bulge-strength", options.bulge_strength,
+                     "bulge strength in [0, 1]")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str();
+  CLI::Option* const theta_option =
+      app.add_option("--blend-theta", options.blend_theta,
+                     "theta of the full blend in radians, [0, pi/4] (0: the "
+                     "strongest blend)")
+          ->check(CLI::Range(0.0, isk::kThetaUnion))
+          ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  options.bulge_strength_given = bulge_option->count() > 0;
+  options.blend_theta_given = theta_option->count() > 0;
+  options.composition_given =
+      operator_option->count() > 0 || joint_operator_option->count() > 0 ||
+      options.bulge_strength_given || options.blend_theta_given;
 
   try {
     return run(options);
