@@ -1,7 +1,8 @@
 // Runs the built isk-demo executable (ISK_DEMO_EXE), the project's main job,
 // on a few frames and checks what it writes: exit code 0, summary.md (and
 // stdout) with the skinning table and the implicit-fields table filled with
-// numbers for both rigs, and the field pictures of both poses as PNG files.
+// numbers for both rigs, the field pictures of both poses as PNG files, and
+// the composition operators' pictures and tables (out/operators/).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "operator_plots.hpp"
 #include "test_support.hpp"
 
 namespace isk {
@@ -142,6 +144,45 @@ TEST(DemoTest, WritesBothTablesAndTheFieldPictures) {
             headers["arm/composed.png"].height);
   EXPECT_GT(headers["cylinder/composed_bent.png"].height,
             headers["cylinder/composed.png"].height);
+  // The operators' pictures (isk-operator-plots at 256 pixels) and their
+  // two tables: the table errors, and one row per operator and bend.
+  for (const std::string* text : {&summary, &run.output}) {
+    EXPECT_EQ(tableRows(*text, "| operator | theta = 0 |").size(), 3u) << *text;
+    const auto bends = tableRows(*text, "| operator | elbow bend");
+    EXPECT_EQ(bends.size(), 12u) << *text;  // 3 operators x 4 bends
+    for (const auto& row : bends) {
+      ASSERT_EQ(row.size(), 7u) << *text;
+      EXPECT_GT(number(row[2]), 0.0) << row[2];  // inside pixels
+      EXPECT_GE(number(row[5]), 0.0) << row[5];  // max abs(f - union)
+    }
+  }
+  EXPECT_NE(summary.find("## Composition operators"), std::string::npos);
+  const int operator_size = 256;
+  samples::PanelLayout panels;
+  panels.panel = operator_size;
+  panels.columns = 5;
+  samples::PanelLayout grid;
+  grid.panel = operator_size;
+  grid.columns = 4;
+  grid.rows = 3;
+  std::map<std::string, std::pair<int, int>> operator_pictures = {
+      {"bend_grid.png", {grid.width(), grid.height()}}};
+  for (const std::string op : {"union", "blend", "bulge"}) {
+    operator_pictures["operator_" + op + ".png"] = {panels.width(),
+                                                    panels.height()};
+    for (const std::string deg : {"000", "045", "090", "135"}) {
+      operator_pictures["bend_" + op + "_" + deg + ".png"] = {operator_size,
+                                                              operator_size};
+    }
+  }
+  for (const auto& [file, size] : operator_pictures) {
+    const std::string path = out + "/operators/" + file;
+    const test::PngHeader header = test::parsePngHeader(test::readFile(path));
+    ASSERT_TRUE(header.valid) << path << " is missing or not a PNG";
+    EXPECT_EQ(header.width, static_cast<uint32_t>(size.first)) << path;
+    EXPECT_EQ(header.height, static_cast<uint32_t>(size.second)) << path;
+  }
+
   // No temporary file is left behind.
   for (const auto& entry : fs::recursive_directory_iterator(out)) {
     EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos)

@@ -5,7 +5,9 @@
 // the skinned vertices on the OpenCL device and on the CPU reference (bind
 // pose and the clip's middle frame), draws the composed field at both poses
 // (out/<rig>/fields/composed.png, composed_bent.png) and adds a second table
-// on the fields. Needs no input file.
+// on the fields. Last, draws the composition operators (out/operators/, as
+// isk-operator-plots does: iso-curves in the (f1, f2) plane and the arm bent
+// at the elbow, Figure 5(c)) and adds their tables. Needs no input file.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
@@ -26,6 +28,7 @@
 #include "isk/implicit_fields.hpp"
 #include "isk/mesh_metrics.hpp"
 #include "isk/pose.hpp"
+#include "operator_plots.hpp"
 #include "skin_runner.hpp"
 
 namespace {
@@ -45,6 +48,9 @@ constexpr double kFieldTolerance[] = {/*buffer*/ 1e-4, /*image*/ 1e-2};
 
 // Longer side of the field pictures, in pixels.
 constexpr int kPictureSize = 512;
+// Side of each operator panel and bend picture: smaller than
+// isk-operator-plots' default to keep the demo quick.
+constexpr int kOperatorPictureSize = 256;
 
 struct Row {
   std::string rig;
@@ -296,9 +302,25 @@ int run(const std::string& out_dir, int frames, const std::string& device) {
     }
   }
 
+  // The composition operators' pictures, as isk-operator-plots draws them.
+  const std::string operators_dir = (fs::path(out_dir) / "operators").string();
+  isk::samples::OperatorPlotOptions operator_options;
+  operator_options.size = kOperatorPictureSize;
+  operator_options.label = "isk-demo: operators";
+  const isk::samples::OperatorPlotsReport operator_report =
+      isk::samples::writeOperatorPlots(operators_dir, operator_options);
+  std::cerr << "isk-demo: " << operator_report.files.size()
+            << " operator pictures in " << operators_dir << "\n";
+  const std::string table_errors =
+      isk::samples::formatTableErrors(operator_report);
+  const std::string bend_table = isk::samples::formatBendTable(operator_report);
+
   std::string table = formatTable(rows);
   const std::string field_table = formatFieldTable(field_rows);
-  std::cout << table << "\n" << field_table;
+  std::cout << table << "\n"
+            << field_table << "\n"
+            << table_errors << "\n"
+            << bend_table;
   const std::string summary_path = (fs::path(out_dir) / "summary.md").string();
   isk::writeTextFile(
       summary_path,
@@ -312,7 +334,21 @@ int run(const std::string& out_dir, int frames, const std::string& device) {
           "): the composed field at the bind pose (composed.png) and at the "
           "middle frame (composed_bent.png), inside red, outside blue, the "
           "0.5 iso black, the mesh section green.\n\n" +
-          field_table);
+          field_table + "\n## Composition operators\n\nPictures in " +
+          operators_dir +
+          " (see samples/operator-plots/README.md): operator_union.png, "
+          "operator_blend.png, operator_bulge.png, each operator's "
+          "iso-curves over the (f1, f2) unit square for theta = 0, pi/16, "
+          "pi/8, 3pi/16 and pi/4 (left to right). Largest abs(table - "
+          "direct) operator value over each panel:\n\n" +
+          table_errors +
+          "\nbend_<op>_<deg>.png and bend_grid.png (the paper's Figure "
+          "5(c)): the arm's composed field around its elbow bent by 0, 45, "
+          "90 and 135 degrees with each operator at every joint; areas "
+          "within " +
+          formatNumber("%.1f", operator_report.measure_radius) +
+          " model units of the elbow, compared with the union's:\n\n" +
+          bend_table);
   std::cerr << "isk-demo: wrote " << summary_path << "\n";
   int status = 0;
   if (!all_agree) {
