@@ -56,7 +56,7 @@
 #endif
 
 #define ISK_FIELD_PARAM_STRIDE 7
-#define ISK_CONTROLLER_SAMPLES 64
+#define ISK_CONTROLLER_SAMPLES 65
 
 #if ISK_FIELDS_IMAGE
 #define ISK_FIELD_DATA_T read_only image3d_t

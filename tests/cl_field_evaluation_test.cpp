@@ -227,43 +227,63 @@ std::optional<Worst> compare(const FieldGridSet& fields,
   return worst;
 }
 
-// Both storages against the reference, every pose of the rig.
+// Both storages against the reference, every pose of the rig, for the
+// union of all fields and for the blend and the bulge at every joint
+// (operator tables, controllers, pairs).
 void expectDeviceMatchesReference(const std::string& name) {
   const Rig& rig = rigOf(name);
   const FieldGridSet& fields = fieldsOf(name);
   ASSERT_GT(fields.fieldCount(), 0) << rigLabel(name) << " has no field";
   auto context = test::sharedContext();
-  for (FieldStorage storage : kStorages) {
-    ClFieldEvaluation device(context, fields, rig.skeleton.jointCount(),
-                             storage);
-    ASSERT_EQ(device.storage(), storage) << device.storageReason();
-    const Tolerance tol = tolerance(*context, storage);
-    for (const Pose& pose : posesOf(rig)) {
-      const std::string what = rigLabel(name) + ", " + pose.label + ", " +
-                               fieldStorageName(storage) + " storage on " +
-                               context->info().describe();
-      const Matrix3Xf points = pointsOf(rig, pose.skinning, 2000);
-      Matrix4Xf expected, expected_per_field;
-      FieldEvaluationJob job;
-      job.fields = &fields;
-      job.skinning = &pose.skinning;
-      job.points = &points;
-      job.out_composed = &expected;
-      job.out_per_field = &expected_per_field;
-      job.run();
-      Matrix4Xf actual, actual_per_field;
-      device.evaluate(pose.skinning, points, actual, &actual_per_field);
-      const std::optional<Worst> worst =
-          compare(fields, pose.skinning, expected, expected_per_field, actual,
-                  actual_per_field, tol, what);
-      ASSERT_TRUE(worst.has_value());
-      // Positive somewhere: the comparison is not of zeros only.
-      EXPECT_GT(expected.col(0).maxCoeff(), 0.1f) << what;
-      std::printf(
-          "[fields] %s: %d points, %d fields, max |value| difference %.3g, "
-          "max gradient difference %.3g (relative), kernel %.3f ms\n",
-          what.c_str(), static_cast<int>(points.rows()), fields.fieldCount(),
-          worst->value, worst->gradient, device.lastKernelMs());
+  for (const CompositionOperator op :
+       {CompositionOperator::kUnion, CompositionOperator::kBlend,
+        CompositionOperator::kBulge}) {
+    CompositionOptions options;
+    options.default_operator = op;
+    const Composition composition =
+        buildComposition(rig.skeleton, fields, options);
+    // The union runs without a composition (the union of all fields).
+    const Composition* used =
+        op == CompositionOperator::kUnion ? nullptr : &composition;
+    for (FieldStorage storage : kStorages) {
+      ClFieldEvaluation device(context, fields, rig.skeleton.jointCount(),
+                               storage, used);
+      ASSERT_EQ(device.storage(), storage) << device.storageReason();
+      EXPECT_EQ(device.pairCount(),
+                static_cast<int>(composition.blended_pairs.size()) *
+                    (used != nullptr));
+      const Tolerance tol = tolerance(*context, storage);
+      for (const Pose& pose : posesOf(rig)) {
+        const std::string what = rigLabel(name) + ", " + pose.label + ", " +
+                                 compositionOperatorName(op) + ", " +
+                                 fieldStorageName(storage) + " storage on " +
+                                 context->info().describe();
+        const Matrix3Xf points = pointsOf(rig, pose.skinning, 2000);
+        Matrix4Xf expected, expected_per_field;
+        FieldEvaluationJob job;
+        job.fields = &fields;
+        job.skinning = &pose.skinning;
+        job.points = &points;
+        job.composition = used;
+        job.out_composed = &expected;
+        job.out_per_field = &expected_per_field;
+        job.run();
+        Matrix4Xf actual, actual_per_field;
+        device.evaluate(pose.skinning, points, actual, &actual_per_field);
+        const std::optional<Worst> worst =
+            compare(fields, pose.skinning, expected, expected_per_field, actual,
+                    actual_per_field, tol, what);
+        ASSERT_TRUE(worst.has_value());
+        // Positive somewhere: the comparison is not of zeros only.
+        EXPECT_GT(expected.col(0).maxCoeff(), 0.1f) << what;
+        std::printf(
+            "[fields] %s: %d points, %d fields, %d pairs, max |value| "
+            "difference %.3g, max gradient difference %.3g (relative), "
+            "kernel %.3f ms\n",
+            what.c_str(), static_cast<int>(points.rows()), fields.fieldCount(),
+            device.pairCount(), worst->value, worst->gradient,
+            device.lastKernelMs());
+      }
     }
   }
 }

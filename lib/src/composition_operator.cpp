@@ -32,11 +32,18 @@ Opening opening(double c, double t) {
 }
 
 // The blend with its larger argument first (x >= y): value and partials.
-OperatorValue blendOrdered(double x, double y, double theta) {
+// tan(theta), 1 (the union) within rounding of theta_u.
+double openingSlope(double theta) {
   const double t = std::tan(clampTheta(theta));
+  return t > 1 - 1e-9 ? 1.0 : t;
+}
+
+OperatorValue blendOrdered(double x, double y, double theta) {
+  const double t = openingSlope(theta);
   // At x = 0 both fields vanish: the union's partials (the blend's are
   // undefined at the origin, where it is homogeneous of degree 1).
-  if (x >= kInnerUnion || y < opening(x, t).k || x <= 0) return {x, 1, 0};
+  if (x >= kInnerUnion || y < opening(x, t).k || x <= 0 || t == 1)
+    return {x, 1, 0};
   // Is (x, y) below the iso-curve C (inside its circle, or outside the
   // quadrant the arc spans)? False at C = x, true at C = 0.7.
   auto below = [&](double c) {
@@ -58,7 +65,7 @@ OperatorValue blendOrdered(double x, double y, double theta) {
 }
 
 bool blendRegionOrdered(double x, double y, double theta) {
-  const double t = std::tan(clampTheta(theta));
+  const double t = openingSlope(theta);
   return x < kInnerUnion && y >= opening(x, t).k && t < 1;
 }
 

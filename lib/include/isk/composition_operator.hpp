@@ -92,7 +92,7 @@ struct ThetaController {
   float at(float alpha) const;
 };
 
-constexpr int kControllerSamples = 64;
+constexpr int kControllerSamples = 65;  // pi/4 and pi/2 fall on samples
 
 // theta = kThetaUnion everywhere.
 ThetaController unionController();
