@@ -29,12 +29,14 @@
 // T tables of N^3 float4 (G, dG/dx, dG/dy, 0) over (x, y, theta), x the
 // larger field; node (i, j, k) of table t at i + N * (j + N * (k + N * t))
 // (the buffer) or at texel (i, j, t * N + k) (the image, N x N x T*N).
-// Composition parameters (five consecutive kernel arguments,
+// Composition parameters (six consecutive kernel arguments,
 // ISK_COMPOSITION_PARAMS, bound by ClFieldEvaluation::setCompositionArgs):
 //   operator_data    the tables;
 //   pairs            int4 per blend or bulge pair: field a, field b, table,
 //                    offset of its controller in `controllers`;
 //   pair_count;
+//   pair_angles      float per pair (per pose): its joint's rotation from
+//                    the bind pose, the cap of alpha (pairJointAngles);
 //   controllers      ISK_CONTROLLER_SAMPLES floats each: theta at
 //                    alpha = pi * i / (ISK_CONTROLLER_SAMPLES - 1);
 //   operator_scales  N - 1, (N - 1) / (pi / 4) (theta -> node), and
@@ -74,12 +76,13 @@ __constant sampler_t kFieldSampler =
   ISK_FIELD_DATA_T field_data, __global const float4 *field_params, \
       const uint field_count, const int resolution
 #define ISK_FIELD_ARGS field_data, field_params, field_count, resolution
-#define ISK_COMPOSITION_PARAMS                                         \
-  ISK_OPERATOR_DATA_T operator_data, __global const int4 *pairs,       \
-      const uint pair_count, __global const float *controllers,        \
-      const float4 operator_scales
-#define ISK_COMPOSITION_ARGS \
-  operator_data, pairs, pair_count, controllers, operator_scales
+#define ISK_COMPOSITION_PARAMS                                              \
+  ISK_OPERATOR_DATA_T operator_data, __global const int4 *pairs,            \
+      const uint pair_count, __global const float *pair_angles,             \
+      __global const float *controllers, const float4 operator_scales
+#define ISK_COMPOSITION_ARGS                                          \
+  operator_data, pairs, pair_count, pair_angles, controllers, \
+      operator_scales
 
 // Value and bone-frame gradient of field `field` at node coordinates u
 // (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
@@ -189,9 +192,11 @@ float3 sample_operator(ISK_OPERATOR_DATA_T operator_data, const int table,
 
 // A blend or bulge pair's composition of samples a and b (value, gradient):
 // theta from the angle between the gradients through the pair's
-// controller, then the table, then the chain rule (composePair).
-float4 compose_pair(ISK_COMPOSITION_PARAMS, const int4 pair, const float4 a,
+// controller (alpha capped by the pair's joint angle), then the table, then
+// the chain rule (composePair).
+float4 compose_pair(ISK_COMPOSITION_PARAMS, const uint k, const float4 a,
                     const float4 b) {
+  const int4 pair = pairs[k];
   const float3 ga = a.yzw;
   const float3 gb = b.yzw;
   const float la = sqrt(ga.x * ga.x + ga.y * ga.y + ga.z * ga.z);
@@ -200,6 +205,7 @@ float4 compose_pair(ISK_COMPOSITION_PARAMS, const int4 pair, const float4 a,
   if (la > 0.0f && lb > 0.0f)
     alpha = acos(clamp((ga.x * gb.x + ga.y * gb.y + ga.z * gb.z) / (la * lb),
                        -1.0f, 1.0f));
+  alpha = min(alpha, pair_angles[k]);
   __global const float* c = controllers + pair.w;
   const float s = clamp(alpha * operator_scales.z, 0.0f,
                         (float)(ISK_CONTROLLER_SAMPLES - 1));
@@ -224,7 +230,7 @@ float4 compose_pairs(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     const float4 b = sample_field_culled(field_data, field_params,
                                          (uint)pair.y, resolution, x);
     if (!(b.x > 0.0f)) continue;
-    best = compose_union(best, compose_pair(ISK_COMPOSITION_ARGS, pair, a, b));
+    best = compose_union(best, compose_pair(ISK_COMPOSITION_ARGS, k, a, b));
   }
   return best;
 }
@@ -243,10 +249,11 @@ float4 sample_composed(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
 //   0 points            packed float3 (x y z per point), model space, posed
 //   1 point_count
 //   2..5 field data, field params, field count, resolution (see above)
-//   6..10 operator data, pairs, pair count, controllers, operator scales
-//   11 out_composed     one float4 per point: value, gradient x y z
-//   12 out_per_field    one float4 per point and field, row p * F + i
-//   13 write_per_field  0: out_per_field is not touched (may be a dummy)
+//   6..11 operator data, pairs, pair count, pair angles, controllers,
+//         operator scales (see above)
+//   12 out_composed     one float4 per point: value, gradient x y z
+//   13 out_per_field    one float4 per point and field, row p * F + i
+//   14 write_per_field  0: out_per_field is not touched (may be a dummy)
 __kernel void evaluate_fields(__global const float* points,
                               const uint point_count, ISK_FIELD_PARAMS,
                               ISK_COMPOSITION_PARAMS,

@@ -252,7 +252,10 @@ void expectDeviceMatchesReference(const std::string& name) {
       EXPECT_EQ(device.pairCount(),
                 static_cast<int>(composition.blended_pairs.size()) *
                     (used != nullptr));
-      const Tolerance tol = tolerance(*context, storage);
+      // Device and host acos differ in the last bits; near the blend's
+      // C = 0.5 crease its partials vary by about 200 per radian of theta.
+      Tolerance tol = tolerance(*context, storage);
+      if (used) tol.gradient *= 10;
       for (const Pose& pose : posesOf(rig)) {
         const std::string what = rigLabel(name) + ", " + pose.label + ", " +
                                  compositionOperatorName(op) + ", " +

@@ -90,7 +90,9 @@ Eigen::Vector4d exactComposed(const ImplicitFields& fields,
     fields.fields[i].evaluate(to_bind * x, value, gradient);
     samples[i] << value, to_bind.linear().transpose() * gradient;
   }
-  return composeExact(fields.composition, samples);
+  return composeExact(
+      fields.composition, samples,
+      pairJointAngles(fields.composition, fields.grids, skinning));
 }
 
 double angleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -300,6 +302,126 @@ TEST(FieldComposition, Figure7GradientStaysCloseToFiniteDifferences) {
     EXPECT_GT(c.checked, 300);
     EXPECT_LT(percentile(c.fd_angles, 95), 10.0);
     EXPECT_LT(c.fd_angles.back(), 20.0);
+  }
+}
+
+// The number of points where the composed field is at least 0.5: a
+// measure of the volume the composed surface encloses near the joint.
+int insideCount(const ImplicitFields& fields, const TransformList& skinning,
+                const Matrix3Xf& points) {
+  const Matrix4Xf f = evaluateComposedField(fields.grids, skinning, points,
+                                            &fields.composition);
+  return static_cast<int>((f.col(0).array() >= 0.5f).count());
+}
+
+// A joint at its bind rotation is a union under the blend (theta(0) =
+// theta_u, alpha capped by the joint's rotation): the straight cylinder and
+// arm, at rest or turned as a whole, have the union's field around their
+// joint, so its surface shows no bulge there. Bent by 45 degrees, the
+// blend fills the fold (the check would catch a blend that does nothing).
+TEST(FieldComposition, StraightLimbBlendIsAUnion) {
+  for (const char* name : {"cylinder", "arm"}) {
+    SCOPED_TRACE(name);
+    const Rig& rig = rigNamed(name);
+    const int joint =
+        rig.skeleton.joints.size() > 2 && rig.skeleton.find("elbow") >= 0
+            ? rig.skeleton.find("elbow")
+            : rig.skeleton.find("bone1");
+    ASSERT_GE(joint, 0);
+    const ImplicitFields blend =
+        fieldsWith(rig, everywhere(CompositionOperator::kBlend));
+    const ImplicitFields plain =
+        fieldsWith(rig, everywhere(CompositionOperator::kUnion));
+    const Eigen::Vector3f centre =
+        rig.skeleton.bindGlobals()[joint].translation();
+    const Matrix3Xf points = pointsAround(centre, 1.5f, 6000);
+    TransformList turned(rig.skeleton.jointCount(),
+                         Eigen::Affine3f(Eigen::AngleAxisf(
+                             0.7f, Eigen::Vector3f(1, 2, 3).normalized())));
+    for (const TransformList& straight :
+         {TransformList(rig.skeleton.jointCount(), Eigen::Affine3f::Identity()),
+          turned}) {
+      const Matrix3Xf moved =
+          (points * straight[0].linear().transpose()).rowwise() +
+          straight[0].translation().transpose();
+      const Matrix4Xf a = evaluateComposedField(blend.grids, straight, moved,
+                                                &blend.composition);
+      const Matrix4Xf b = evaluateComposedField(plain.grids, straight, moved,
+                                                &plain.composition);
+      EXPECT_GT(a.col(0).maxCoeff(), 0.5f);
+      float largest = 0;
+      Eigen::Index where = 0;
+      (a - b).cwiseAbs().rowwise().maxCoeff().maxCoeff(&where);
+      largest = (a - b).row(where).cwiseAbs().maxCoeff();
+      // Equal up to the table's float interpolation of G = x.
+      EXPECT_LE(largest, 1e-6f) << "first at point " << where << ": blend "
+                                << a.row(where) << ", union " << b.row(where);
+    }
+    const TransformList bent = bendAt(rig, joint, 45);
+    const int fill = insideCount(blend, bent, points);
+    const int crease = insideCount(plain, bent, points);
+    EXPECT_GT(fill, crease + crease / 200)
+        << "blend " << fill << ", union " << crease;
+  }
+}
+
+// The bulge strength really changes the shape: bent by 90 degrees, the
+// composed surface encloses more the stronger the bulge; strength 0 is the
+// union exactly.
+TEST(FieldComposition, BulgeStrengthChangesTheShape) {
+  const Rig& rig = rigNamed("cylinder");
+  const int joint = rig.skeleton.find("bone1");
+  const TransformList bent = bendAt(rig, joint, 90);
+  const Matrix3Xf points = pointsAround(
+      rig.skeleton.bindGlobals()[joint].translation(), 1.5f, 20000);
+  std::vector<int> inside;
+  for (double strength : {0.0, 0.5, 1.0}) {
+    CompositionOptions options = everywhere(CompositionOperator::kBulge);
+    options.bulge_strength = strength;
+    inside.push_back(insideCount(fieldsWith(rig, options), bent, points));
+  }
+  const int plain = insideCount(
+      fieldsWith(rig, everywhere(CompositionOperator::kUnion)), bent, points);
+  EXPECT_EQ(inside[0], plain);
+  EXPECT_GT(inside[1], plain + plain / 200) << inside[1] << " vs " << plain;
+  EXPECT_GT(inside[2], inside[1] + plain / 200)
+      << inside[2] << " vs " << inside[1];
+}
+
+// Broad phase: a field's posed bounding sphere holds its whole support box
+// for rigid poses and for the scaled transforms LBS may give, so skipping
+// the fields whose sphere misses a point changes no result.
+TEST(FieldComposition, BoundingSpheresHoldTheSupportBoxes) {
+  const Rig& rig = rigNamed("arm");
+  const FieldGridSet& grids = test::implicitFieldsOf("arm").grids;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> unit(-1.f, 1.f);
+  for (int trial = 0; trial < 50; ++trial) {
+    TransformList skinning(rig.skeleton.jointCount());
+    for (Eigen::Affine3f& t : skinning) {
+      t = Eigen::Translation3f(5 * unit(rng), 5 * unit(rng), 5 * unit(rng)) *
+          Eigen::AngleAxisf(
+              3 * unit(rng),
+              Eigen::Vector3f(unit(rng), unit(rng), 1).normalized()) *
+          Eigen::Scaling(1.f + 0.5f * unit(rng) * (trial % 2));
+    }
+    const std::vector<Eigen::Affine3f> to_bone =
+        fieldTransforms(grids, skinning);
+    const std::vector<Eigen::Vector4f> spheres =
+        posedFieldSpheres(grids, to_bone);
+    for (int i = 0; i < grids.fieldCount(); ++i) {
+      const FieldGrid& g = grids.grids[i];
+      const Eigen::Affine3f to_model = to_bone[i].inverse(Eigen::Affine);
+      for (int corner = 0; corner < 8; ++corner) {
+        const Eigen::Vector3f local(
+            (corner & 1) ? g.box_max.x() : g.box_min.x(),
+            (corner & 2) ? g.box_max.y() : g.box_min.y(),
+            (corner & 4) ? g.box_max.z() : g.box_min.z());
+        const Eigen::Vector3f x = to_model * local;
+        EXPECT_LE((x - spheres[i].head<3>()).squaredNorm(), spheres[i][3])
+            << "trial " << trial << ", field " << i << ", corner " << corner;
+      }
+    }
   }
 }
 

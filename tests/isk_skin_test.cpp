@@ -475,13 +475,12 @@ TEST(IskSkinTest, OperatorChoiceChangesTheIsoDrift) {
   EXPECT_TRUE(with_union["operators"].empty()) << with_union["operators"];
   EXPECT_EQ(elbow_bulge["operators"], nlohmann::json({{"elbow", "bulge"}}));
   // The bend moves vertices off their iso values differently under each
-  // composition (seen: 3e-4 to 1e-3 apart on the mean, 0.01 to 0.06 on the
-  // max; OpenCL and the reference agree to 1e-7).
+  // composition (seen on 5 frames: mean 0.0056 union, 0.0081 blend; the
+  // max, 0.24, sits where the operators change nothing; OpenCL and the
+  // reference agree to 1e-7).
   const double union_mean = driftOf(with_union, "mean");
-  EXPECT_GT(std::abs(driftOf(with_blend, "mean") - union_mean), 1e-5);
+  EXPECT_GT(std::abs(driftOf(with_blend, "mean") - union_mean), 1e-4);
   EXPECT_GT(std::abs(driftOf(elbow_bulge, "mean") - union_mean), 1e-5);
-  EXPECT_GT(std::abs(driftOf(with_blend, "max") - driftOf(with_union, "max")),
-            1e-5);
 }
 
 TEST(IskSkinTest, ReferenceAndOpenClGiveTheSameIsoDrift) {

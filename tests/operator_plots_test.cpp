@@ -291,33 +291,30 @@ TEST(OperatorPlotsTest, BendPicturesShowFigure5c) {
     EXPECT_EQ(u.max_from_union, 0);
     EXPECT_GT(u.inside, 0);
   }
-  // Straight arm: the blend only fills the small groove where the two
-  // fields' closures meet (alpha 20-40 degrees there, not 0), a small
-  // fraction of the inside area.
-  const Bend& blend0 = bends["blend 0"];
+  // Straight arm: the elbow at its bind rotation is a union for the blend
+  // and the bulge (alpha is capped by the joint's rotation): no bulge.
   const Bend& blend45 = bends["blend 45"];
-  EXPECT_LE(std::abs(blend0.inside_minus_union), 0.03 * bends["union 0"].inside)
-      << s.run.output;
+  for (const char* op : {"blend 0", "bulge 0"}) {
+    EXPECT_EQ(bends[op].inside_minus_union, 0) << op << "\n" << s.run.output;
+    EXPECT_LT(bends[op].max_from_union, 1e-4) << op << "\n" << s.run.output;
+  }
   // 45 degrees (alpha about pi/4 in the fold: theta = 0, the strongest
-  // blend): the blend fills the fold, more inside than the union, and
-  // moves the field twice as far as at 0 degrees.
-  EXPECT_GT(blend45.inside_minus_union, 0.005 * bends["union 45"].inside)
+  // blend): the blend fills the fold, more inside than the union.
+  EXPECT_GT(blend45.inside_minus_union, 0.01 * bends["union 45"].inside)
       << s.run.output;
-  EXPECT_GT(blend45.max_from_union, 1.5 * blend0.max_from_union)
-      << s.run.output;
+  EXPECT_GT(blend45.max_from_union, 0.1) << s.run.output;
   // From pi/2 on the controller is back to a union in the fold.
   EXPECT_LT(bends["blend 90"].max_from_union, blend45.max_from_union);
   EXPECT_LT(bends["blend 135"].max_from_union, blend45.max_from_union);
   // The bulge grows with the bend up to its amplitude, reached at 90.
-  EXPECT_GT(bends["bulge 90"].max_from_union,
-            3 * bends["bulge 0"].max_from_union)
+  EXPECT_GT(bends["bulge 90"].max_from_union, bends["bulge 45"].max_from_union)
       << s.run.output;
   EXPECT_GT(bends["bulge 90"].max_from_union, 0.8 * kBulgeAmplitude);
   EXPECT_LE(bends["bulge 135"].max_from_union, kBulgeAmplitude + 1e-3);
   EXPECT_GT(bends["bulge 90"].inside_minus_union, 0);
 
   // The pictures say the same: the blend's red area at 45 degrees exceeds
-  // the union's; at 0 degrees they are within 3%.
+  // the union's; at 0 degrees they are the same.
   const Picture union0 = decode(s.out + "/bend_union_000.png");
   const Picture blend0_picture = decode(s.out + "/bend_blend_000.png");
   const Picture union45 = decode(s.out + "/bend_union_045.png");
@@ -325,8 +322,7 @@ TEST(OperatorPlotsTest, BendPicturesShowFigure5c) {
   ASSERT_TRUE(union0.valid() && blend0_picture.valid() && union45.valid() &&
               blend45_picture.valid());
   EXPECT_GT(union0.redCount(), kSize * kSize / 10);
-  EXPECT_NEAR(blend0_picture.redCount(), union0.redCount(),
-              0.03 * union0.redCount());
+  EXPECT_EQ(blend0_picture.redCount(), union0.redCount());
   EXPECT_GT(blend45_picture.redCount(), union45.redCount());
 }
 

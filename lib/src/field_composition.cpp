@@ -175,14 +175,35 @@ Eigen::Vector4f fieldBoundingSphere(const FieldGrid& grid) {
   return {centre.x(), centre.y(), centre.z(), radius};
 }
 
+std::vector<float> pairJointAngles(const Composition& composition,
+                                   const FieldGridSet& fields,
+                                   const TransformList& skinning) {
+  std::vector<float> angles;
+  angles.reserve(composition.blended_pairs.size());
+  for (int k : composition.blended_pairs) {
+    const FieldPair& pair = composition.pairs[k];
+    const Eigen::Quaternionf a(
+        skinning[fields.grids[pair.field_a].joint].rotation());
+    const Eigen::Quaternionf b(
+        skinning[fields.grids[pair.field_b].joint].rotation());
+    // The half-angle form stays accurate near 0 (the acos of the trace
+    // would turn float rounding into 3e-4 rad at rest).
+    const Eigen::Quaternionf relative = a.conjugate() * b;
+    angles.push_back(2.f *
+                     std::atan2(relative.vec().norm(), std::abs(relative.w())));
+  }
+  return angles;
+}
+
 Eigen::Vector4f composePair(const Composition& composition,
                             const FieldPair& pair, const Eigen::Vector4f& a,
-                            const Eigen::Vector4f& b) {
+                            const Eigen::Vector4f& b, float joint_angle) {
   const Eigen::Vector3f ga = a.tail<3>(), gb = b.tail<3>();
   const float la = ga.norm(), lb = gb.norm();
   float alpha = 0.f;
   if (la > 0.f && lb > 0.f)
     alpha = std::acos(std::min(1.f, std::max(-1.f, ga.dot(gb) / (la * lb))));
+  alpha = std::min(alpha, joint_angle);
   const float theta = composition.controllers[pair.controller].at(alpha);
   float g[3];
   composition.tables[pair.table]->sample(a[0], b[0], theta, g);
@@ -193,12 +214,13 @@ Eigen::Vector4f composePair(const Composition& composition,
 }
 
 Eigen::Vector4d composeExact(const Composition& composition,
-                             const std::vector<Eigen::Vector4d>& samples) {
+                             const std::vector<Eigen::Vector4d>& samples,
+                             const std::vector<float>& joint_angles) {
   Eigen::Vector4d best = Eigen::Vector4d::Zero();
   for (const Eigen::Vector4d& s : samples)
     if (s[0] > best[0]) best = s;
-  for (int k : composition.blended_pairs) {
-    const FieldPair& pair = composition.pairs[k];
+  for (size_t n = 0; n < composition.blended_pairs.size(); ++n) {
+    const FieldPair& pair = composition.pairs[composition.blended_pairs[n]];
     const Eigen::Vector4d& a = samples.at(pair.field_a);
     const Eigen::Vector4d& b = samples.at(pair.field_b);
     if (!(a[0] > 0 && b[0] > 0)) continue;
@@ -207,6 +229,7 @@ Eigen::Vector4d composeExact(const Composition& composition,
     if (ga.norm() > 0 && gb.norm() > 0)
       alpha = std::acos(
           std::clamp(ga.normalized().dot(gb.normalized()), -1.0, 1.0));
+    alpha = std::min(alpha, static_cast<double>(joint_angles.at(n)));
     const double theta =
         composition.controllers[pair.controller].at(static_cast<float>(alpha));
     const OperatorValue v = evaluateOperator(pair.op, a[0], b[0], theta);

@@ -94,6 +94,9 @@ void FieldEvaluationJob::run() const {
   const std::vector<Eigen::Vector4f> spheres =
       posedFieldSpheres(*fields, to_bone);
   std::vector<Eigen::Vector4f> samples(field_count);
+  const std::vector<float> joint_angles =
+      composition ? pairJointAngles(*composition, *fields, *skinning)
+                  : std::vector<float>();
   for (int p = 0; p < point_count; ++p) {
     const Eigen::Vector3f x = points->row(p).transpose();
     Eigen::Vector4f best = Eigen::Vector4f::Zero();
@@ -115,12 +118,14 @@ void FieldEvaluationJob::run() const {
       if (sample[0] > best[0]) best = sample;  // union: max, first on ties
     }
     if (composition) {
-      for (int k : composition->blended_pairs) {
-        const FieldPair& pair = composition->pairs[k];
+      for (size_t n = 0; n < joint_angles.size(); ++n) {
+        const FieldPair& pair =
+            composition->pairs[composition->blended_pairs[n]];
         const Eigen::Vector4f& a = samples[pair.field_a];
         const Eigen::Vector4f& b = samples[pair.field_b];
         if (!(a[0] > 0.f && b[0] > 0.f)) continue;  // max(a, b) already in
-        const Eigen::Vector4f g = composePair(*composition, pair, a, b);
+        const Eigen::Vector4f g =
+            composePair(*composition, pair, a, b, joint_angles[n]);
         if (g[0] > best[0]) best = g;
       }
     }

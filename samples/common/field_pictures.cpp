@@ -152,6 +152,8 @@ std::vector<float> SliceEvaluator::analytic(int field) {
   const int lo = field == kComposed ? 0 : field;
   const int hi = field == kComposed ? count : field + 1;
   std::vector<float> values(pixelCount(), 0.f);
+  const std::vector<float> joint_angles =
+      pairJointAngles(fields_.composition, fields_.grids, skinning_);
   parallelRows(plane_.height, [&](int first, int last) {
     const Matrix3Xf points = rowCentres(first, last);
     const size_t offset = static_cast<size_t>(first) * plane_.width;
@@ -166,8 +168,8 @@ std::vector<float> SliceEvaluator::analytic(int field) {
         // Back to the posed frame: the transpose of the linear part.
         samples[i].tail<3>() = to_bind_[i].linear().transpose() * gradient;
       }
-      values[offset + p] =
-          static_cast<float>(composeExact(fields_.composition, samples)[0]);
+      values[offset + p] = static_cast<float>(
+          composeExact(fields_.composition, samples, joint_angles)[0]);
     }
   });
   analytic_ms_ += millisecondsSince(start);

@@ -10,8 +10,16 @@
 // so only blend and bulge pairs are evaluated as pairs.
 //
 // At a point, a pair's theta comes from the angle alpha between its two
-// fields' gradients through the pair's controller (Figure 7); the gradient
-// of the composition is dg/df1 grad f1 + dg/df2 grad f2 (the dependence of
+// fields' gradients through the pair's controller (Figure 7), alpha capped
+// by the joint's rotation from its bind pose (the angle of the rotation
+// taking the parent bone's skinning rotation to the child's): the paper
+// notes that alpha is close to that rotation (Figure 6(a)), but where two
+// parts meet, their rounded ends make gradients differ by 20 to 45 degrees
+// even at rest, and the local angle alone would blend a straight limb into
+// a bulge (3% of its radius on the procedural cylinder). With the cap, a
+// joint at its bind rotation is a union whatever its parts' ends look like;
+// once it turns, the local angle decides as in the paper. The gradient of
+// the composition is dg/df1 grad f1 + dg/df2 grad f2 (the dependence of
 // theta on the point is left out, as in the paper). A field whose gradient
 // vanishes gives alpha = 0.
 //
@@ -90,20 +98,30 @@ Composition buildComposition(
 // A bounding sphere of field i's support box, bone frame: centre, radius.
 Eigen::Vector4f fieldBoundingSphere(const FieldGrid& grid);
 
+// Each blend or bulge pair's joint rotation from its bind pose (radians, in
+// [0, pi]; Composition::blended_pairs order) for the skinning transforms
+// `skinning` (#joints): the cap of alpha above.
+std::vector<float> pairJointAngles(const Composition& composition,
+                                   const FieldGridSet& fields,
+                                   const TransformList& skinning);
+
 // Composes the samples of a pair (value, model-space gradient each) with
-// its operator through its table and controller: value and gradient. The
-// kernels do exactly this (kernels/fields.cl: compose_pair).
+// its operator through its table and controller, alpha capped by
+// `joint_angle` (pairJointAngles): value and gradient. The kernels do
+// exactly this (kernels/fields.cl: compose_pair).
 Eigen::Vector4f composePair(const Composition& composition,
                             const FieldPair& pair, const Eigen::Vector4f& a,
-                            const Eigen::Vector4f& b);
+                            const Eigen::Vector4f& b, float joint_angle);
 
 // The composition of exact samples, one per field (#fields; value and
 // model-space gradient, e.g. from the analytic fields): the max of all of
 // them and of every blend or bulge pair with its operator evaluated directly
-// (evaluateOperator, no table; theta through the pair's controller). The
-// reference the baked composition approximates.
+// (evaluateOperator, no table; theta through the pair's controller, alpha
+// capped by `joint_angles`, from pairJointAngles). The reference the baked
+// composition approximates.
 Eigen::Vector4d composeExact(const Composition& composition,
-                             const std::vector<Eigen::Vector4d>& samples);
+                             const std::vector<Eigen::Vector4d>& samples,
+                             const std::vector<float>& joint_angles);
 
 // One line for reports: "union at every joint", or the joints per
 // operator ("blend at 'elbow.L', 'elbow.R'; union elsewhere").

@@ -351,11 +351,20 @@ void ClFieldEvaluation::uploadComposition(const Composition* composition) {
   }
   pairs_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                       pairs.size() * sizeof(cl_int), pairs.data());
+  pair_angles_staging_.assign(std::max(pair_count_, 1), 0.f);
+  pair_angles_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                            pair_angles_staging_.size() * sizeof(float),
+                            pair_angles_staging_.data());
+  if (composition) {
+    composition_layout_.pairs = composition->pairs;
+    composition_layout_.blended_pairs = composition->blended_pairs;
+  }
   controllers_ =
       cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                  controllers.size() * sizeof(float), controllers.data());
-  composition_bytes_ =
-      pairs.size() * sizeof(cl_int) + controllers.size() * sizeof(float);
+  composition_bytes_ = pairs.size() * sizeof(cl_int) +
+                       controllers.size() * sizeof(float) +
+                       pair_angles_staging_.size() * sizeof(float);
 
   // The tables one after the other (z of the image, offset of the buffer);
   // a 2^3 zero table when there are none.
@@ -386,18 +395,19 @@ void ClFieldEvaluation::setCompositionArgs(cl::Kernel& kernel,
       kernel.setArg(first_index, operator_nodes_);
     kernel.setArg(first_index + 1, pairs_);
     kernel.setArg(first_index + 2, static_cast<cl_uint>(pair_count_));
-    kernel.setArg(first_index + 3, controllers_);
+    kernel.setArg(first_index + 3, pair_angles_);
+    kernel.setArg(first_index + 4, controllers_);
     // As OperatorTable::sample and ThetaController::at compute them.
     const float last = static_cast<float>(table_resolution_ - 1);
     const cl_float4 scales = {{last, last / static_cast<float>(kThetaUnion),
                                static_cast<float>(kControllerSamples - 1) /
                                    static_cast<float>(3.14159265358979323846),
                                0.f}};
-    kernel.setArg(first_index + 4, scales);
+    kernel.setArg(first_index + 5, scales);
   } catch (const cl::Error& e) {
     throwClError(e, "ClFieldEvaluation::setCompositionArgs (arguments " +
                         std::to_string(first_index) + " to " +
-                        std::to_string(first_index + 4) + ")");
+                        std::to_string(first_index + 5) + ")");
   }
 }
 
@@ -448,6 +458,11 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
       for (int c = 0; c < 4; ++c) p[4 * r + c] = to_bone[i].matrix()(r, c);
     for (int c = 0; c < 4; ++c) p[24 + c] = spheres[i][c];
   }
+  if (pair_count_ > 0) {
+    const std::vector<float> angles =
+        pairJointAngles(composition_layout_, layout_, skinning);
+    std::copy(angles.begin(), angles.end(), pair_angles_staging_.begin());
+  }
   upload_ms_ = 0;
   if (field_count_ == 0) return;
   try {
@@ -458,6 +473,10 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
         params_, CL_TRUE, 0,
         static_cast<size_t>(field_count_) * kParamStride * kFloat4,
         params_staging_.data(), nullptr, &write);
+    if (pair_count_ > 0)
+      context_->queue().enqueueWriteBuffer(pair_angles_, CL_TRUE, 0,
+                                           pair_count_ * sizeof(float),
+                                           pair_angles_staging_.data());
     upload_ms_ = context_->profilingEnabled()
                      ? eventMilliseconds(write)
                      : detail::millisecondsSince(start);
@@ -502,9 +521,9 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
     kernel_.setArg(1, static_cast<cl_uint>(point_count));
     setFieldArgs(kernel_, 2);
     setCompositionArgs(kernel_, 6);
-    kernel_.setArg(11, composed_);
-    kernel_.setArg(12, per_field && field_count_ > 0 ? per_field_ : dummy_);
-    kernel_.setArg(13, static_cast<cl_uint>(per_field ? 1 : 0));
+    kernel_.setArg(12, composed_);
+    kernel_.setArg(13, per_field && field_count_ > 0 ? per_field_ : dummy_);
+    kernel_.setArg(14, static_cast<cl_uint>(per_field ? 1 : 0));
     cl::Event run;
     const auto start = std::chrono::steady_clock::now();
     context_->queue().enqueueNDRangeKernel(

@@ -30,13 +30,14 @@
 // sample_field, compose_pair, sample_composed): build them with
 // buildOptions(), put ISK_FIELD_PARAMS (four consecutive arguments: field
 // data, field params, field count, resolution) and ISK_COMPOSITION_PARAMS
-// (five: operator data, pairs, pair count, controllers, operator scales)
+// (six: operator data, pairs, pair count, pair angles, controllers,
+// operator scales)
 // among their parameters and bind them with setFieldArgs(kernel, first) and
 // setCompositionArgs(kernel, first) after setPose(). The evaluate_fields
 // kernel itself takes: 0 points (packed float3), 1 point count, 2..5 the
-// field arguments, 6..10 the composition arguments, 11 composed output
-// (float4 per point), 12 per-field output (float4 per point and field, row
-// p * F + i), 13 whether to write the per-field output.
+// field arguments, 6..11 the composition arguments, 12 composed output
+// (float4 per point), 13 per-field output (float4 per point and field, row
+// p * F + i), 14 whether to write the per-field output.
 #pragma once
 
 #include <array>
@@ -102,8 +103,8 @@ class ClFieldEvaluation {
   // arguments first_index .. first_index + 3 of `kernel` (a kernel of a
   // program built with buildOptions()).
   void setFieldArgs(cl::Kernel& kernel, cl_uint first_index) const;
-  // Binds operator data, pairs, pair count, controllers and operator scales
-  // to arguments first_index .. first_index + 4.
+  // Binds operator data, pairs, pair count, pair angles, controllers and
+  // operator scales to arguments first_index .. first_index + 5.
   void setCompositionArgs(cl::Kernel& kernel, cl_uint first_index) const;
   // "-DISK_FIELDS_IMAGE=1" or "-DISK_FIELDS_IMAGE=0".
   std::string buildOptions() const;
@@ -159,7 +160,9 @@ class ClFieldEvaluation {
   cl::Buffer nodes_;
   cl::Buffer params_;
   cl::Image3D operator_image_;
-  cl::Buffer operator_nodes_, pairs_, controllers_;
+  cl::Buffer operator_nodes_, pairs_, pair_angles_, controllers_;
+  Composition composition_layout_;  // the composition without its tables
+  std::vector<float> pair_angles_staging_;  // read by the pose's write
   int pair_count_ = 0, table_count_ = 0, table_resolution_ = 2;
   size_t operator_bytes_ = 0, composition_bytes_ = 0;
   std::vector<float> params_staging_;  // read by non-blocking writes
