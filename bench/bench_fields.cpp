@@ -7,9 +7,16 @@
 // tracking does once per vertex and step): the single-thread CPU reference
 // against the OpenCL kernel with the grids in a buffer and in a 3D image;
 // points already on the device, composed value + gradient left there.
+// FieldEval composes with the union of all fields; FieldCompose with the
+// blend or the bulge at every joint (Appendix A, operator tables, one pair
+// per joint on top of the union). The counter fields_per_point is the broad
+// phase's average number of fields sampled per point (of `fields`).
+//
+// OperatorTable: baking one 128^3 operator table on every hardware thread.
 //
 //   isk_bench --benchmark_filter='FieldBuild'
-//   isk_bench --benchmark_filter='FieldEval'
+//   isk_bench --benchmark_filter='FieldEval|FieldCompose'
+//   isk_bench --benchmark_filter='OperatorTable'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -88,13 +95,42 @@ const PosedFrames& framesOf(const Model& model) {
   return *slot;
 }
 
-void evaluateReference(benchmark::State& state, const Model& model) {
+// The composition of `op` at every joint for the model's fields (cached).
+const Composition& compositionOf(const Model& model, CompositionOperator op) {
+  static std::map<std::pair<std::string, int>, std::unique_ptr<Composition>>
+      cache;
+  auto& slot = cache[{model.name, static_cast<int>(op)}];
+  if (!slot) {
+    CompositionOptions options;
+    options.default_operator = op;
+    slot = std::make_unique<Composition>(buildComposition(
+        rigOf(model).skeleton, fieldsOf(model).grids, options));
+  }
+  return *slot;
+}
+
+// Average number of fields whose posed bounding sphere holds a point.
+double fieldsPerPoint(const FieldGridSet& grids, const TransformList& pose,
+                      const Matrix3Xf& points) {
+  const std::vector<Eigen::Vector4f> spheres =
+      posedFieldSpheres(grids, fieldTransforms(grids, pose));
+  double count = 0;
+  for (Eigen::Index p = 0; p < points.rows(); ++p)
+    for (const Eigen::Vector4f& s : spheres)
+      count += (points.row(p).transpose() - s.head<3>()).squaredNorm() <= s[3];
+  return count / std::max<Eigen::Index>(points.rows(), 1);
+}
+
+void evaluateReference(benchmark::State& state, const Model& model,
+                       CompositionOperator op) {
   const ImplicitFields& fields = fieldsOf(model);
   const PosedFrames& frames = framesOf(model);
   Matrix4Xf composed;
   FieldEvaluationJob job;
   job.fields = &fields.grids;
   job.out_composed = &composed;
+  if (op != CompositionOperator::kUnion)
+    job.composition = &compositionOf(model, op);
   size_t frame = 0;
   for (auto _ : state) {
     job.skinning = &frames.poses[frame % frames.poses.size()];
@@ -105,16 +141,21 @@ void evaluateReference(benchmark::State& state, const Model& model) {
   }
   state.counters["points"] = rigOf(model).mesh.vertexCount();
   state.counters["fields"] = fields.grids.fieldCount();
+  state.counters["fields_per_point"] =
+      fieldsPerPoint(fields.grids, frames.poses[0], frames.positions[0]);
+  state.counters["pairs"] =
+      job.composition ? job.composition->blended_pairs.size() : 0;
   state.SetLabel("CPU reference, 1 thread");
 }
 
 void evaluateOpenCl(benchmark::State& state, const Model& model,
-                    FieldStorage storage) {
+                    FieldStorage storage, CompositionOperator op) {
   const ImplicitFields& fields = fieldsOf(model);
   const PosedFrames& frames = framesOf(model);
   const Rig& rig = rigOf(model);
-  ClFieldEvaluation evaluation(context(), fields.grids,
-                               rig.skeleton.jointCount(), storage);
+  ClFieldEvaluation evaluation(
+      context(), fields.grids, rig.skeleton.jointCount(), storage,
+      op == CompositionOperator::kUnion ? nullptr : &compositionOf(model, op));
   if (evaluation.storage() != storage) {
     state.SkipWithError(
         ("storage not available: " + evaluation.storageReason()).c_str());
@@ -126,6 +167,8 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
     points.emplace_back(context()->context(),
                         CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                         p.size() * sizeof(float), const_cast<float*>(p.data()));
+  // PoCL compiles a kernel at its first launch: keep that out of the loop.
+  evaluation.evaluate(frames.poses[0], points[0], rig.mesh.vertexCount());
   double kernel = 0, upload = 0;
   size_t frame = 0;
   for (auto _ : state) {
@@ -141,7 +184,24 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
   state.counters["kernel_ms"] = kernel / n;
   state.counters["pose_upload_ms"] = upload / n;
   state.counters["field_MiB"] = evaluation.fieldBytes() / (1024.0 * 1024.0);
+  state.counters["operator_MiB"] =
+      evaluation.operatorBytes() / (1024.0 * 1024.0);
+  state.counters["pairs"] = evaluation.pairCount();
   state.SetLabel(context()->info().describe());
+}
+
+void bakeTable(benchmark::State& state, CompositionOperator op) {
+  size_t bytes = 0;
+  for (auto _ : state) {
+    const OperatorTable table = bakeOperatorTable(op);
+    benchmark::DoNotOptimize(table.nodes.data());
+    bytes = table.bytes();
+  }
+  state.counters["table_MiB"] = bytes / (1024.0 * 1024.0);
+  state.SetLabel(
+      "128^3, " +
+      std::to_string(std::max(1u, std::thread::hardware_concurrency())) +
+      " thread(s)");
 }
 
 }  // namespace
@@ -161,21 +221,36 @@ void registerFieldBenchmarks() {
           ->UseRealTime();
     }
   }
-  for (const Model& model : models()) {
-    if (!available(model)) continue;
-    benchmark::RegisterBenchmark(("FieldEval/reference/" + model.name).c_str(),
-                                 evaluateReference, model)
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime();
-    for (FieldStorage storage : {FieldStorage::kBuffer, FieldStorage::kImage})
-      benchmark::RegisterBenchmark(
-          ("FieldEval/opencl-" + std::string(fieldStorageName(storage)) + "/" +
-           model.name)
-              .c_str(),
-          evaluateOpenCl, model, storage)
+  for (const CompositionOperator op :
+       {CompositionOperator::kUnion, CompositionOperator::kBlend,
+        CompositionOperator::kBulge}) {
+    const std::string group =
+        op == CompositionOperator::kUnion
+            ? std::string("FieldEval/")
+            : std::string("FieldCompose/") + compositionOperatorName(op) + "/";
+    for (const Model& model : models()) {
+      if (!available(model)) continue;
+      benchmark::RegisterBenchmark((group + "reference/" + model.name).c_str(),
+                                   evaluateReference, model, op)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
+      for (FieldStorage storage : {FieldStorage::kBuffer, FieldStorage::kImage})
+        benchmark::RegisterBenchmark(
+            (group + "opencl-" + fieldStorageName(storage) + "/" + model.name)
+                .c_str(),
+            evaluateOpenCl, model, storage, op)
+            ->Unit(benchmark::kMillisecond)
+            ->UseRealTime();
+    }
   }
+  for (const CompositionOperator op :
+       {CompositionOperator::kBlend, CompositionOperator::kBulge})
+    benchmark::RegisterBenchmark(
+        (std::string("OperatorTable/") + compositionOperatorName(op)).c_str(),
+        bakeTable, op)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->Iterations(3);
 }
 
 }  // namespace isk::bench

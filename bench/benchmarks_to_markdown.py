@@ -7,7 +7,9 @@
 Each row pairs the OpenCL and CPU-reference runs of one model and method from
 the same run, so the speed-up is a ratio measured in one process. Tables are
 printed for the families present: Frame (skinning), FieldBuild (offline
-fields) and FieldEval (field evaluation).
+fields), FieldEval (field evaluation), FieldCompose (the blend or the bulge
+at every joint, against FieldEval's union of the same run) and OperatorTable
+(baking one operator table).
 """
 import json
 import sys
@@ -95,6 +97,49 @@ def field_eval_table(data):
     print()
 
 
+def field_compose_table(data):
+    # FieldCompose/<op>/<backend>/<model>/real_time, against
+    # FieldEval/<backend>/<model>/real_time (the union) of the same run.
+    union = group_runs(data, "FieldEval", 3, lambda p: (p[2], p[1]))
+    runs = group_runs(data, "FieldCompose", 4, lambda p: ((p[3], p[1]), p[2]))
+    if not runs:
+        return
+    print("| model | operator | pairs | fields per point | reference ms "
+          "| OpenCL buffer ms | OpenCL image ms | reference / union "
+          "| buffer / union | image / union |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for (model, op), backends in runs.items():
+        ref = backends.get("reference")
+        if not ref:
+            continue
+        cells, ratios = [], []
+        for backend in ("reference", "opencl-buffer", "opencl-image"):
+            run = backends.get(backend)
+            base = union.get(model, {}).get(backend)
+            cells.append(f"{run['real_time']:.3f}" if run else "n/a")
+            ratios.append(f"{run['real_time'] / base['real_time']:.2f}x"
+                          if run and base else "n/a")
+        print(f"| {model} | {op} | {int(ref['pairs'])} | "
+              f"{ref['fields_per_point']:.1f} of {int(ref['fields'])} | "
+              + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
+    print()
+
+
+def operator_table_table(data):
+    # OperatorTable/<op>/iterations:<n>/real_time
+    rows = [b for b in data["benchmarks"]
+            if b["name"].startswith("OperatorTable/")
+            and not b.get("error_occurred")]
+    if not rows:
+        return
+    print("| operator table | MiB | bake ms | threads |")
+    print("|---|---:|---:|---|")
+    for b in rows:
+        print(f"| {b['name'].split('/')[1]} | {b['table_MiB']:.0f} | "
+              f"{b['real_time']:.0f} | {b.get('label', '')} |")
+    print()
+
+
 def main(path):
     with open(path) as f:
         data = json.load(f)
@@ -106,6 +151,8 @@ def main(path):
     frame_table(data)
     field_build_table(data)
     field_eval_table(data)
+    field_compose_table(data)
+    operator_table_table(data)
 
 
 if __name__ == "__main__":
