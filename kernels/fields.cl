@@ -84,6 +84,28 @@ __constant sampler_t kFieldSampler =
   operator_data, pairs, pair_count, pair_angles, controllers, \
       operator_scales
 
+#if !ISK_FIELDS_IMAGE
+// Trilinear interpolation of the float4 nodes of an n^3 grid at node
+// coordinates u in [0, n - 1]; `grid` points at its node (0, 0, 0). Same
+// order of operations as detail::trilinearNodes (lib/src/trilinear.hpp).
+float4 trilinear_nodes(__global const float4* grid, const int n,
+                       const float3 u) {
+  const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));
+  const float3 t = u - convert_float3(i);
+  const size_t dy = (size_t)n;
+  const size_t dz = (size_t)n * (size_t)n;
+  __global const float4* base =
+      grid + ((size_t)i.x + dy * (size_t)i.y + dz * (size_t)i.z);
+  const float4 x00 = base[0] + t.x * (base[1] - base[0]);
+  const float4 x10 = base[dy] + t.x * (base[dy + 1] - base[dy]);
+  const float4 x01 = base[dz] + t.x * (base[dz + 1] - base[dz]);
+  const float4 x11 = base[dy + dz] + t.x * (base[dy + dz + 1] - base[dy + dz]);
+  const float4 y0 = x00 + t.y * (x10 - x00);
+  const float4 y1 = x01 + t.y * (x11 - x01);
+  return y0 + t.z * (y1 - y0);
+}
+#endif
+
 // Value and bone-frame gradient of field `field` at node coordinates u
 // (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
 float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
@@ -97,22 +119,9 @@ float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
   const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
   return read_imagef(field_data, kFieldSampler, (float4)(origin + u, 0.0f));
 #else
-  // Same order of operations as FieldGrid::sampleLocal.
-  const int3 i = min(convert_int3_rtz(u), (int3)(resolution - 2));
-  const float3 t = u - convert_float3(i);
   const size_t n = (size_t)resolution;
-  __global const float4* base =
-      field_data + (size_t)field * n * n * n +
-      ((size_t)i.x + n * ((size_t)i.y + n * (size_t)i.z));
-  const size_t dy = n;
-  const size_t dz = n * n;
-  const float4 x00 = base[0] + t.x * (base[1] - base[0]);
-  const float4 x10 = base[dy] + t.x * (base[dy + 1] - base[dy]);
-  const float4 x01 = base[dz] + t.x * (base[dz + 1] - base[dz]);
-  const float4 x11 = base[dy + dz] + t.x * (base[dy + dz + 1] - base[dy + dz]);
-  const float4 y0 = x00 + t.y * (x10 - x00);
-  const float4 y1 = x01 + t.y * (x11 - x01);
-  return y0 + t.z * (y1 - y0);
+  return trilinear_nodes(field_data + (size_t)field * n * n * n, resolution,
+                         u);
 #endif
 }
 
@@ -172,21 +181,9 @@ float3 sample_operator(ISK_OPERATOR_DATA_T operator_data, const int table,
       .xyz;
 #else
   const int n = (int)last + 1;
-  const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));
-  const float3 t = u - convert_float3(i);
   const size_t nn = (size_t)n;
-  __global const float4* base =
-      operator_data + (size_t)table * nn * nn * nn +
-      ((size_t)i.x + nn * ((size_t)i.y + nn * (size_t)i.z));
-  const size_t dy = nn;
-  const size_t dz = nn * nn;
-  const float4 x00 = base[0] + t.x * (base[1] - base[0]);
-  const float4 x10 = base[dy] + t.x * (base[dy + 1] - base[dy]);
-  const float4 x01 = base[dz] + t.x * (base[dz + 1] - base[dz]);
-  const float4 x11 = base[dy + dz] + t.x * (base[dy + dz + 1] - base[dy + dz]);
-  const float4 y0 = x00 + t.y * (x10 - x00);
-  const float4 y1 = x01 + t.y * (x11 - x01);
-  return (y0 + t.z * (y1 - y0)).xyz;
+  return trilinear_nodes(operator_data + (size_t)table * nn * nn * nn, n, u)
+      .xyz;
 #endif
 }
 

@@ -119,44 +119,8 @@ void expectPngSize(const std::string& path, int width, int height) {
   EXPECT_EQ(header.height, static_cast<uint32_t>(height)) << path;
 }
 
-std::string trim(const std::string& text) {
-  const size_t first = text.find_first_not_of(' ');
-  if (first == std::string::npos) return "";
-  return text.substr(first, text.find_last_not_of(' ') - first + 1);
-}
-
-// The body rows of the markdown table whose header line starts with
-// `header`, as trimmed cells.
-std::vector<std::vector<std::string>> tableRows(const std::string& text,
-                                                const std::string& header) {
-  std::vector<std::vector<std::string>> rows;
-  std::istringstream in(text);
-  std::string line;
-  bool in_table = false, skipped_rule = false;
-  while (std::getline(in, line)) {
-    if (!in_table) {
-      in_table = line.rfind(header, 0) == 0;
-      continue;
-    }
-    if (line.empty() || line[0] != '|') break;
-    if (!skipped_rule) {
-      skipped_rule = true;
-      continue;
-    }
-    std::vector<std::string> cells;
-    std::istringstream row(line.substr(1));
-    std::string cell;
-    while (std::getline(row, cell, '|')) cells.push_back(trim(cell));
-    rows.push_back(cells);
-  }
-  return rows;
-}
-
-double number(const std::string& cell) {
-  char* end = nullptr;
-  const double value = std::strtod(cell.c_str(), &end);
-  return (cell.empty() || *end != '\0') ? std::nan("") : value;
-}
+using test::number;
+using test::tableRows;
 
 // One row of the bend table.
 struct Bend {

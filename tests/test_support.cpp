@@ -2,7 +2,9 @@
 
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -176,6 +178,54 @@ PngHeader parsePngHeader(const std::string& bytes) {
   header.height = bigEndian32(bytes, 20);
   header.valid = true;
   return header;
+}
+
+namespace {
+
+std::string trim(const std::string& text) {
+  const size_t first = text.find_first_not_of(' ');
+  if (first == std::string::npos) return "";
+  return text.substr(first, text.find_last_not_of(' ') - first + 1);
+}
+
+}  // namespace
+
+// The body rows of the markdown table whose header line starts with
+// `header`, as trimmed cells; empty when there is no such table.
+std::vector<std::vector<std::string>> tableRows(const std::string& text,
+                                                const std::string& header) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(text);
+  std::string line;
+  bool in_table = false;
+  int skip = 0;
+  while (std::getline(in, line)) {
+    if (!in_table) {
+      if (line.rfind(header, 0) == 0) {
+        in_table = true;
+        skip = 1;  // the |---| line
+      }
+      continue;
+    }
+    if (line.empty() || line[0] != '|') break;
+    if (skip > 0) {
+      --skip;
+      continue;
+    }
+    std::vector<std::string> cells;
+    std::istringstream row(line.substr(1));
+    std::string cell;
+    while (std::getline(row, cell, '|')) cells.push_back(trim(cell));
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
+// The number a cell spells; NaN when it is not entirely a number.
+double number(const std::string& cell) {
+  char* end = nullptr;
+  const double value = std::strtod(cell.c_str(), &end);
+  return (cell.empty() || *end != '\0') ? std::nan("") : value;
 }
 
 }  // namespace isk::test

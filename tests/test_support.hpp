@@ -97,4 +97,12 @@ struct PngHeader {
 };
 PngHeader parsePngHeader(const std::string& bytes);
 
+// The body rows of the markdown table whose header line starts with
+// `header`, as trimmed cells; empty when there is no such table.
+std::vector<std::vector<std::string>> tableRows(const std::string& text,
+                                                const std::string& header);
+
+// The number a cell spells; NaN when it is not entirely a number.
+double number(const std::string& cell);
+
 }  // namespace isk::test

@@ -8,6 +8,7 @@
 
 #include "isk/error.hpp"
 #include "parallel_for.hpp"
+#include "trilinear.hpp"
 
 namespace isk {
 namespace {
@@ -116,9 +117,15 @@ OperatorValue tableBranch(CompositionOperator op, double x, double y,
   return {x, 1, 0};
 }
 
-// Swaps the partials back when the arguments were ordered.
-OperatorValue unordered(OperatorValue v, bool swapped) {
-  if (swapped) std::swap(v.dg_df1, v.dg_df2);
+// A symmetric operator from its branch with the larger argument first:
+// f1, f2 clamped to [0, 1], ordered, and the partials swapped back.
+OperatorValue symmetric(OperatorValue (*ordered)(double, double, double),
+                        double f1, double f2, double theta) {
+  f1 = clamp01(f1);
+  f2 = clamp01(f2);
+  if (f2 <= f1) return ordered(f1, f2, theta);
+  OperatorValue v = ordered(f2, f1, theta);
+  std::swap(v.dg_df1, v.dg_df2);
   return v;
 }
 
@@ -165,21 +172,11 @@ OperatorValue unionOperator(double f1, double f2) {
 }
 
 OperatorValue blendOperator(double f1, double f2, double theta) {
-  f1 = clamp01(f1);
-  f2 = clamp01(f2);
-  const bool swapped = f2 > f1;
-  return unordered(
-      swapped ? blendOrdered(f2, f1, theta) : blendOrdered(f1, f2, theta),
-      swapped);
+  return symmetric(blendOrdered, f1, f2, theta);
 }
 
 OperatorValue bulgeOperator(double f1, double f2, double theta) {
-  f1 = clamp01(f1);
-  f2 = clamp01(f2);
-  const bool swapped = f2 > f1;
-  return unordered(
-      swapped ? bulgeBranch(f2, f1, theta) : bulgeBranch(f1, f2, theta),
-      swapped);
+  return symmetric(bulgeBranch, f1, f2, theta);
 }
 
 OperatorValue evaluateOperator(CompositionOperator op, double f1, double f2,
@@ -267,27 +264,8 @@ void OperatorTable::sample(float f1, float f2, float theta,
   const float u[3] = {std::min(std::max(x, 0.f), 1.f) * last,
                       std::min(std::max(y, 0.f), 1.f) * last,
                       std::min(std::max(theta * theta_scale, 0.f), last)};
-  int i[3];
-  float t[3];
-  for (int a = 0; a < 3; ++a) {
-    i[a] = std::min(static_cast<int>(u[a]), resolution - 2);
-    t[a] = u[a] - static_cast<float>(i[a]);
-  }
-  const size_t n = static_cast<size_t>(resolution);
-  const float* base = nodes.data() + 4 * (i[0] + n * (i[1] + n * i[2]));
-  const size_t dy = 4 * n, dz = 4 * n * n;
-  float value[3];
-  // Same order of operations as the kernel's buffer path.
-  for (int c = 0; c < 3; ++c) {
-    const float* b = base + c;
-    const float x00 = b[0] + t[0] * (b[4] - b[0]);
-    const float x10 = b[dy] + t[0] * (b[dy + 4] - b[dy]);
-    const float x01 = b[dz] + t[0] * (b[dz + 4] - b[dz]);
-    const float x11 = b[dy + dz] + t[0] * (b[dy + dz + 4] - b[dy + dz]);
-    const float y0 = x00 + t[1] * (x10 - x00);
-    const float y1 = x01 + t[1] * (x11 - x01);
-    value[c] = y0 + t[2] * (y1 - y0);
-  }
+  const Eigen::Vector4f value =
+      detail::trilinearNodes(nodes.data(), resolution, u);
   out[0] = value[0];
   out[1] = first ? value[1] : value[2];
   out[2] = first ? value[2] : value[1];

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "isk/error.hpp"
+#include "trilinear.hpp"
 
 namespace isk {
 
@@ -13,28 +14,8 @@ Eigen::Vector4f FieldGrid::sampleLocal(const Eigen::Vector3f& local) const {
   if (!(u.x() >= 0 && u.y() >= 0 && u.z() >= 0 && u.x() <= last &&
         u.y() <= last && u.z() <= last))
     return Eigen::Vector4f::Zero();
-  int i[3];
-  float t[3];
-  for (int a = 0; a < 3; ++a) {
-    i[a] = std::min(static_cast<int>(u[a]), resolution - 2);
-    t[a] = u[a] - static_cast<float>(i[a]);
-  }
-  const size_t n = static_cast<size_t>(resolution);
-  auto node = [&](int dx, int dy, int dz) {
-    const size_t index = (i[0] + dx) + n * ((i[1] + dy) + n * (i[2] + dz));
-    return Eigen::Map<const Eigen::Vector4f>(&nodes[4 * index]);
-  };
-  const Eigen::Vector4f x00 =
-      node(0, 0, 0) + t[0] * (node(1, 0, 0) - node(0, 0, 0));
-  const Eigen::Vector4f x10 =
-      node(0, 1, 0) + t[0] * (node(1, 1, 0) - node(0, 1, 0));
-  const Eigen::Vector4f x01 =
-      node(0, 0, 1) + t[0] * (node(1, 0, 1) - node(0, 0, 1));
-  const Eigen::Vector4f x11 =
-      node(0, 1, 1) + t[0] * (node(1, 1, 1) - node(0, 1, 1));
-  const Eigen::Vector4f y0 = x00 + t[1] * (x10 - x00);
-  const Eigen::Vector4f y1 = x01 + t[1] * (x11 - x01);
-  return y0 + t[2] * (y1 - y0);
+  const float coordinates[3] = {u.x(), u.y(), u.z()};
+  return detail::trilinearNodes(nodes.data(), resolution, coordinates);
 }
 
 FieldGrid bakeField(const BoneField& field, int resolution) {
