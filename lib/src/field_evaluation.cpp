@@ -81,54 +81,80 @@ Validation FieldEvaluationJob::validate() const {
   return Validation::ok();
 }
 
+ComposedFieldSampler::ComposedFieldSampler(const FieldGridSet& fields,
+                                           const TransformList& skinning,
+                                           const Composition* composition)
+    : fields_(&fields),
+      composition_(composition),
+      to_bone_(fieldTransforms(fields, skinning)),
+      spheres_(posedFieldSpheres(fields, to_bone_)),
+      joint_angles_(composition
+                        ? pairJointAngles(*composition, fields, skinning)
+                        : std::vector<float>()) {}
+
+Eigen::Vector4f ComposedFieldSampler::sample(const Eigen::Vector3f& x,
+                                             Eigen::Vector4f* per_field) const {
+  const int field_count = fields_->fieldCount();
+  // Per-field samples are needed by the pairs; small stack buffer first.
+  Eigen::Vector4f local_samples[64];
+  std::vector<Eigen::Vector4f> heap_samples;
+  Eigen::Vector4f* samples = per_field;
+  if (!samples) {
+    if (field_count <= 64) {
+      samples = local_samples;
+    } else {
+      heap_samples.resize(field_count);
+      samples = heap_samples.data();
+    }
+  }
+  Eigen::Vector4f best = Eigen::Vector4f::Zero();
+  for (int i = 0; i < field_count; ++i) {
+    Eigen::Vector4f& sample = samples[i];
+    sample.setZero();
+    // Broad phase: a point outside the sphere is outside the support box.
+    if ((x - spheres_[i].head<3>()).squaredNorm() <= spheres_[i][3]) {
+      const Eigen::Vector4f local =
+          fields_->grids[i].sampleLocal(to_bone_[i] * x);
+      // Gradient back to model space: transpose of the inverse's linear
+      // part.
+      sample[0] = local[0];
+      sample.tail<3>() = to_bone_[i].linear().transpose() * local.tail<3>();
+    }
+    if (sample[0] > best[0]) best = sample;  // union: max, first on ties
+  }
+  if (composition_) {
+    for (size_t n = 0; n < joint_angles_.size(); ++n) {
+      const FieldPair& pair =
+          composition_->pairs[composition_->blended_pairs[n]];
+      const Eigen::Vector4f& a = samples[pair.field_a];
+      const Eigen::Vector4f& b = samples[pair.field_b];
+      if (!(a[0] > 0.f && b[0] > 0.f)) continue;  // max(a, b) already in
+      const Eigen::Vector4f g =
+          composePair(*composition_, pair, a, b, joint_angles_[n]);
+      if (g[0] > best[0]) best = g;
+    }
+  }
+  return best;
+}
+
 void FieldEvaluationJob::run() const {
   validate().throwIfFailed("FieldEvaluationJob");
-  const std::vector<Eigen::Affine3f> to_bone =
-      fieldTransforms(*fields, *skinning);
+  const ComposedFieldSampler sampler(*fields, *skinning, composition);
   const int field_count = fields->fieldCount();
   const int point_count = static_cast<int>(points->rows());
   out_composed->resize(point_count, 4);
   if (out_per_field)
     out_per_field->resize(static_cast<Eigen::Index>(point_count) * field_count,
                           4);
-  const std::vector<Eigen::Vector4f> spheres =
-      posedFieldSpheres(*fields, to_bone);
   std::vector<Eigen::Vector4f> samples(field_count);
-  const std::vector<float> joint_angles =
-      composition ? pairJointAngles(*composition, *fields, *skinning)
-                  : std::vector<float>();
   for (int p = 0; p < point_count; ++p) {
     const Eigen::Vector3f x = points->row(p).transpose();
-    Eigen::Vector4f best = Eigen::Vector4f::Zero();
-    for (int i = 0; i < field_count; ++i) {
-      Eigen::Vector4f& sample = samples[i];
-      sample.setZero();
-      // Broad phase: a point outside the sphere is outside the support box.
-      if ((x - spheres[i].head<3>()).squaredNorm() <= spheres[i][3]) {
-        const Eigen::Vector4f local =
-            fields->grids[i].sampleLocal(to_bone[i] * x);
-        // Gradient back to model space: transpose of the inverse's linear
-        // part.
-        sample[0] = local[0];
-        sample.tail<3>() = to_bone[i].linear().transpose() * local.tail<3>();
-      }
-      if (out_per_field)
+    const Eigen::Vector4f best =
+        sampler.sample(x, out_per_field ? samples.data() : nullptr);
+    if (out_per_field)
+      for (int i = 0; i < field_count; ++i)
         out_per_field->row(static_cast<Eigen::Index>(p) * field_count + i) =
-            sample.transpose();
-      if (sample[0] > best[0]) best = sample;  // union: max, first on ties
-    }
-    if (composition) {
-      for (size_t n = 0; n < joint_angles.size(); ++n) {
-        const FieldPair& pair =
-            composition->pairs[composition->blended_pairs[n]];
-        const Eigen::Vector4f& a = samples[pair.field_a];
-        const Eigen::Vector4f& b = samples[pair.field_b];
-        if (!(a[0] > 0.f && b[0] > 0.f)) continue;  // max(a, b) already in
-        const Eigen::Vector4f g =
-            composePair(*composition, pair, a, b, joint_angles[n]);
-        if (g[0] > best[0]) best = g;
-      }
-    }
+            samples[i].transpose();
     out_composed->row(p) = best.transpose();
   }
 }

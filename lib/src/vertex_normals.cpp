@@ -36,10 +36,18 @@ Validation VertexNormalsJob::validate() const {
                             std::to_string(fallback_normals->rows()) +
                             " rows for " + std::to_string(n) + " vertices");
   }
+  // Built by build() (3 entries a triangle) or welded across seams (more):
+  // rows must cover the list and name triangles of this mesh.
   if (adjacency->offsets.size() != static_cast<size_t>(n) + 1 ||
-      adjacency->triangles.size() !=
-          3 * static_cast<size_t>(triangles->rows())) {
+      adjacency->offsets.back() != adjacency->triangles.size()) {
     return Validation::fail("the adjacency was not built for this mesh");
+  }
+  for (const uint32_t t : adjacency->triangles) {
+    if (t >= static_cast<uint32_t>(triangles->rows())) {
+      return Validation::fail("the adjacency names triangle " +
+                              std::to_string(t) + " of a mesh of " +
+                              std::to_string(triangles->rows()));
+    }
   }
   return Validation::ok();
 }

@@ -36,6 +36,31 @@ std::vector<Eigen::Affine3f> fieldTransforms(const FieldGridSet& fields,
 std::vector<Eigen::Vector4f> posedFieldSpheres(
     const FieldGridSet& fields, const std::vector<Eigen::Affine3f>& to_bone);
 
+// The composed field of one pose, sampled one point at a time: the pose's
+// field transforms, posed bounding spheres and pair joint angles are
+// computed once at construction. The fields and composition must outlive it.
+// FieldEvaluationJob and the surface tracking reference sample through it.
+class ComposedFieldSampler {
+ public:
+  // `composition` may be null (union of all fields). No validation: use
+  // FieldEvaluationJob::validate() first.
+  ComposedFieldSampler(const FieldGridSet& fields,
+                       const TransformList& skinning,
+                       const Composition* composition);
+  // Value and model-space gradient of the composed field at x. `per_field`
+  // (when given) receives #fields samples (0 for culled fields).
+  Eigen::Vector4f sample(const Eigen::Vector3f& x,
+                         Eigen::Vector4f* per_field = nullptr) const;
+  int fieldCount() const { return fields_->fieldCount(); }
+
+ private:
+  const FieldGridSet* fields_;
+  const Composition* composition_;
+  std::vector<Eigen::Affine3f> to_bone_;
+  std::vector<Eigen::Vector4f> spheres_;
+  std::vector<float> joint_angles_;
+};
+
 struct FieldEvaluationJob {
   const FieldGridSet* fields = nullptr;
   const TransformList* skinning = nullptr;  // #joints

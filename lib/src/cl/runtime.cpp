@@ -1,5 +1,6 @@
 #include "isk/cl/runtime.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <string>
 
@@ -198,13 +199,52 @@ int ClContext::cachedProgramCount() const {
   return static_cast<int>(programs_.size());
 }
 
+namespace {
+
+// A kernel file's source with its `#include "NAME.cl"` lines replaced by the
+// embedded NAME.cl (each file once): kernels share code that way and still
+// compile on their own with -I kernels.
+void appendWithIncludes(const std::string& kernel_file,
+                        std::vector<std::string>& seen, std::string& out) {
+  if (std::find(seen.begin(), seen.end(), kernel_file) != seen.end()) return;
+  seen.push_back(kernel_file);
+  const std::string source = embeddedKernelSource(kernel_file);
+  size_t line_start = 0;
+  while (line_start < source.size()) {
+    size_t line_end = source.find('\n', line_start);
+    if (line_end == std::string::npos) line_end = source.size();
+    const std::string line = source.substr(line_start, line_end - line_start);
+    const std::string prefix = "#include \"";
+    if (line.rfind(prefix, 0) == 0 && line.size() > prefix.size() + 4 &&
+        line.compare(line.size() - 4, 4, ".cl\"") == 0) {
+      appendWithIncludes(
+          line.substr(prefix.size(), line.size() - prefix.size() - 4), seen,
+          out);
+      out += "\n";
+    } else {
+      out += line;
+      out += "\n";
+    }
+    line_start = line_end + 1;
+  }
+}
+
+std::string withEmbeddedIncludes(const std::string& kernel_file) {
+  std::vector<std::string> seen;
+  std::string out;
+  appendWithIncludes(kernel_file, seen, out);
+  return out;
+}
+
+}  // namespace
+
 cl::Program ClContext::program(const std::string& kernel_file,
                                const std::string& extra_options) {
   const std::string options = buildOptions(extra_options);
   const std::string key = kernel_file + "\n" + options;
   std::lock_guard<std::mutex> lock(mutex_);
   if (auto it = programs_.find(key); it != programs_.end()) return it->second;
-  const std::string source = embeddedKernelSource(kernel_file);
+  const std::string source = withEmbeddedIncludes(kernel_file);
   cl::Program program;
   try {
     program = cl::Program(context_, source);

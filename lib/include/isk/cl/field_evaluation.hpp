@@ -139,6 +139,7 @@ class ClFieldEvaluation {
 
   ClContext& context() { return *context_; }
   const ClContext& context() const { return *context_; }
+  std::shared_ptr<ClContext> sharedContext() const { return context_; }
 
  private:
   void chooseStorage(FieldStorage requested, const FieldGridSet& fields);
