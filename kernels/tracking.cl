@@ -1,0 +1,319 @@
+// Surface tracking (Vaillant et al. 2013, section 5): projection of each
+// vertex onto its rest iso value with the 55 degree contact stop (eq. 4),
+// tangential relaxation (eq. 5, 6) and localized Laplacian smoothing (eq. 7).
+// OpenCL C 1.2. CPU reference: lib/src/surface_tracking.cpp (formulas and
+// states documented in lib/include/isk/surface_tracking.hpp). Host class:
+// lib/src/cl/surface_tracking.cpp, which builds this file after fields.cl
+// (the include below is resolved from the embedded sources; compiled on its
+// own, pass -I kernels).
+//
+// Layout: positions are packed float triples (vload3/vstore3); one uchar
+// state per vertex (TRACK_* below); prev_gradients one float4 per vertex
+// (xyz the unit gradient of the vertex's last projection step, w = 1 when
+// set); one-rings as compressed rows (ring_offsets, ring_neighbours,
+// ring_weights); one uchar relaxation rule per vertex (RULE_FIXED: neither
+// relaxed nor smoothed).
+
+#include "fields.cl"
+
+#define TRACK_MARCHING 0
+#define TRACK_CONVERGED 1
+#define TRACK_CONTACT 2
+#define TRACK_LOST 3
+#define TRACK_UNTRACKED 4
+#define TRACK_CREASE 5
+#define RULE_FIXED 3
+#define RING_CLOSED 0
+#define MAX_PARTNERS 8
+
+// The composed field at x, plus (home >= 0) the home field's sample and the
+// largest sample of the other parts' fields (neither the home field nor its
+// blend or bulge partners), as homeSamples does on the CPU.
+float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
+                       const float3 x, const int home,
+                       __global const int* partners, float4* home_out,
+                       float4* other_out) {
+  float4 best = (float4)(0.0f);
+  float4 h = (float4)(0.0f);
+  float4 other = (float4)(0.0f);
+  for (uint i = 0; i < field_count; ++i) {
+    const float4 s =
+        sample_field_culled(field_data, field_params, i, resolution, x);
+    best = compose_union(best, s);
+    if (home < 0) continue;
+    if ((int)i == home) {
+      h = s;
+      continue;
+    }
+    bool partner = false;
+    for (int k = 0; k < MAX_PARTNERS; ++k)
+      partner = partner || partners[home * MAX_PARTNERS + k] == (int)i;
+    if (!partner) other = compose_union(other, s);
+  }
+  *home_out = h;
+  *other_out = other;
+  return compose_pairs(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, best);
+}
+
+// The skinned positions become the working positions; every representative
+// with an iso value starts marching.
+__kernel void track_begin(const uint vertex_count,
+                          __global const float* skinned,
+                          __global float* positions,
+                          __global const float* iso_values,
+                          __global const int* representative,
+                          __global uchar* states,
+                          __global float4* prev_gradients) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  vstore3(vload3(v, skinned), v, positions);
+  states[v] = iso_values[v] > 0.0f && representative[v] == (int)v
+                  ? TRACK_MARCHING
+                  : TRACK_UNTRACKED;
+  prev_gradients[v] = (float4)(0.0f);
+}
+
+// `steps` projection steps of every marching vertex. step_params: sigma,
+// cos(contact angle), tolerance (field units), largest move (model units);
+// min_gradient: smallest |grad f| (model units); contact_params: x 1 for the
+// contact by home field (0: the paper's march only), y its gap (field
+// units). prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
+__kernel void track_project(const uint vertex_count, __global float* positions,
+                            __global const float* iso_values,
+                            __global uchar* states,
+                            __global float4* prev_gradients, const int steps,
+                            const float4 step_params, const float min_gradient,
+                            __global const int* home_fields,
+                            __global const float* home_margins,
+                            __global const int* partners,
+                            const float4 contact_params, ISK_FIELD_PARAMS,
+                            ISK_COMPOSITION_PARAMS) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  uchar state = states[v];
+  if (state != TRACK_MARCHING) return;  // stopped: no more work this frame
+  float3 x = vload3(v, positions);
+  float4 prev = prev_gradients[v];
+  const float iso = iso_values[v];
+  const int home = contact_params.x > 0.0f ? home_fields[v] : -1;
+  const float margin = home >= 0 ? home_margins[v] : 0.0f;
+  for (int s = 0; s < steps; ++s) {
+    float4 h, other;
+    const float4 sample = sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS,
+                                          x, home, partners, &h, &other);
+    const float3 g = sample.yzw;
+    const float g_len = sqrt(g.x * g.x + g.y * g.y + g.z * g.z);
+    if (!(sample.x > 0.0f) || !(g_len > min_gradient)) {
+      state = TRACK_LOST;
+      break;
+    }
+    float entered = 0.0f;  // how far another part's field exceeds home
+    if (home >= 0) {
+      entered = other.x - h.x - margin;
+      bool to_contact = prev.w == 2.0f;
+      if (to_contact && sample.x < iso - step_params.z) {
+        to_contact = false;  // left through the surface: the paper's march
+        prev.w = 0.0f;
+      }
+      if (h.x > 0.0f &&
+          (to_contact ||
+           (sample.x > iso + step_params.z && entered > step_params.z))) {
+        const float c = entered + contact_params.y;
+        if (to_contact && c <= step_params.z) {
+          state = TRACK_CONTACT;
+          break;
+        }
+        const float3 gc = other.yzw - h.yzw;
+        const float gc_len = sqrt(gc.x * gc.x + gc.y * gc.y + gc.z * gc.z);
+        if (!(gc_len > min_gradient)) {
+          state = TRACK_LOST;
+          break;
+        }
+        prev.w = 2.0f;
+        const float length = clamp(-step_params.x * c / gc_len,
+                                   -step_params.w, step_params.w);
+        x += length * (gc / gc_len);
+        continue;
+      }
+    }
+    const float3 unit = g / g_len;
+    if (prev.w == 1.0f &&
+        unit.x * prev.x + unit.y * prev.y + unit.z * prev.z < step_params.y) {
+      state = TRACK_CONTACT;
+      break;
+    }
+    prev = (float4)(unit, 1.0f);
+    const float d = iso - sample.x;
+    if (fabs(d) < step_params.z) {
+      // On another part's surface: a crease, smoothed like a contact.
+      state = entered > step_params.z ? TRACK_CREASE : TRACK_CONVERGED;
+      break;
+    }
+    const float length =
+        clamp(step_params.x * d / g_len, -step_params.w, step_params.w);
+    x += length * unit;
+  }
+  vstore3(x, v, positions);
+  states[v] = state;
+  prev_gradients[v] = prev;
+}
+
+// One tangential relaxation step, positions_in -> positions_out (every
+// vertex is written).
+__kernel void track_relax(const uint vertex_count,
+                          __global const float* positions_in,
+                          __global float* positions_out,
+                          __global const float* iso_values,
+                          __global const uchar* states,
+                          __global const float4* prev_gradients,
+                          __global const uchar* rules,
+                          __global const uint* ring_offsets,
+                          __global const int* ring_neighbours,
+                          __global const float* ring_weights,
+                          __global const int* home_fields,
+                          __global const float* home_margins,
+                          __global const int* partners,
+                          const float4 contact_params, ISK_FIELD_PARAMS,
+                          ISK_COMPOSITION_PARAMS) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const float3 x = vload3(v, positions_in);
+  float3 out = x;
+  if (states[v] == TRACK_MARCHING && rules[v] != RULE_FIXED) {
+    // The surface the vertex marches to: its iso-surface, or the contact
+    // surface while it marches to a contact.
+    const bool to_contact = prev_gradients[v].w == 2.0f;
+    const int home = to_contact ? home_fields[v] : -1;
+    float4 h, other;
+    const float4 sample = sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS,
+                                          x, home, partners, &h, &other);
+    float distance = sample.x - iso_values[v];
+    float3 normal = sample.yzw;
+    if (to_contact) {
+      distance = other.x - h.x - home_margins[v] + contact_params.y;
+      normal = other.yzw - h.yzw;
+    }
+    const float normal_len = sqrt(normal.x * normal.x + normal.y * normal.y +
+                                  normal.z * normal.z);
+    if (sample.x > 0.0f && normal_len > 0.0f) {
+      const float3 unit = normal / normal_len;
+      const float t = fabs(distance) - 1.0f;
+      const float mu = max(0.0f, 1.0f - t * t * t * t);
+      float3 centroid = (float3)(0.0f);
+      const uint end = ring_offsets[v + 1];
+      for (uint i = ring_offsets[v]; i < end; ++i)
+        centroid += ring_weights[i] * vload3(ring_neighbours[i], positions_in);
+      float3 d = centroid - x;
+      d -= (d.x * unit.x + d.y * unit.y + d.z * unit.z) * unit;
+      out = x + mu * d;
+    }
+  }
+  vstore3(out, v, positions_out);
+}
+
+// (beta, gamma): beta = 1 on contact vertices, gamma = 1 on crease
+// vertices, 0 elsewhere.
+__kernel void track_beta_init(const uint vertex_count,
+                              __global const uchar* states,
+                              __global float2* beta) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  beta[v] = (float2)(states[v] == TRACK_CONTACT ? 1.0f : 0.0f,
+                     states[v] == TRACK_CREASE ? 1.0f : 0.0f);
+}
+
+// One diffusion of (beta, gamma) over the one-ring, beta_in -> beta_out, of
+// the channels whose `channels` entry is 1: sources stay at 1, the others
+// take the mean of themselves and their neighbours (duplicates, with no
+// ring, keep theirs).
+__kernel void track_beta_diffuse(const uint vertex_count,
+                                 __global const uchar* states,
+                                 __global const uint* ring_offsets,
+                                 __global const int* ring_neighbours,
+                                 __global const float* ring_lengths,
+                                 const float radius,
+                                 __global const float2* beta_in,
+                                 __global float2* beta_out,
+                                 const float2 channels) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const uint begin = ring_offsets[v];
+  const uint end = ring_offsets[v + 1];
+  const float2 b = beta_in[v];
+  float2 sum = b;
+  float count = 1.0f;
+  for (uint i = begin; i < end; ++i) {
+    if (!(ring_lengths[i] <= radius)) continue;
+    sum += beta_in[ring_neighbours[i]];
+    count += 1.0f;
+  }
+  float2 out = sum / count;
+  if (channels.x == 0.0f) out.x = b.x;
+  if (channels.y == 0.0f) out.y = b.y;
+  if (states[v] == TRACK_CONTACT) out.x = 1.0f;
+  if (states[v] == TRACK_CREASE) out.y = 1.0f;
+  beta_out[v] = out;
+}
+
+// One Laplacian step over the neighbours within `radius` (rest distance),
+// positions_in -> positions_out: full, weighted by beta
+// (eq. 7), and tangential (normal to the ring) weighted by (1 - beta) gamma;
+// `weights` (0 or 1 each) switches the two off once their steps are done.
+__kernel void track_smooth(const uint vertex_count,
+                           __global const uchar* rules,
+                           __global const uchar* kinds,
+                           __global const uint* ring_offsets,
+                           __global const int* ring_neighbours,
+                           __global const float* ring_lengths,
+                           const float radius,
+                           __global const float2* beta,
+                           __global const float* positions_in,
+                           __global float* positions_out,
+                           const float2 weights) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const float3 x = vload3(v, positions_in);
+  float3 out = x;
+  const float2 bc = beta[v] * weights;
+  if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != RULE_FIXED) {
+    const uint begin = ring_offsets[v];
+    const uint end = ring_offsets[v + 1];
+    float3 centroid = (float3)(0.0f);
+    int near = 0;
+    for (uint i = begin; i < end; ++i) {
+      if (!(ring_lengths[i] <= radius)) continue;
+      centroid += vload3(ring_neighbours[i], positions_in);
+      ++near;
+    }
+    centroid /= (float)max(near, 1);
+    const float3 d = near > 0 ? centroid - x : (float3)(0.0f);
+    float3 tangential = (float3)(0.0f);
+    if (bc.y > 0.0f && near > 0 && kinds[v] == RING_CLOSED) {
+      float3 normal = (float3)(0.0f);
+      for (uint i = begin; i < end; ++i) {
+        const uint j = i + 1 < end ? i + 1 : begin;
+        normal += cross(vload3(ring_neighbours[i], positions_in) - x,
+                        vload3(ring_neighbours[j], positions_in) - x);
+      }
+      const float length =
+          sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
+      if (length > 0.0f) {
+        normal /= length;
+        tangential =
+            d - (d.x * normal.x + d.y * normal.y + d.z * normal.z) * normal;
+      }
+    }
+    out = x + bc.x * d + (1.0f - bc.x) * bc.y * tangential;
+  }
+  vstore3(out, v, positions_out);
+}
+
+// Seam copies take their representative's position.
+__kernel void track_copy_duplicates(const uint vertex_count,
+                                    __global const int* representative,
+                                    __global const float* positions_in,
+                                    __global float* positions_out) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  vstore3(vload3(representative[v], positions_in), v, positions_out);
+}

@@ -1,0 +1,101 @@
+// Surface tracking on an OpenCL device: host class of kernels/tracking.cl
+// (projection with the contact stop, tangential relaxation, beta diffusion,
+// localized Laplacian smoothing) and of kernels/normals.cl.
+//
+// Same job, stages and formulas as the CPU reference isk::CpuSurfaceTracking
+// (isk/surface_tracking.hpp, where they are documented). Every buffer stays
+// on the device: a frame uploads nothing but the pose (through the field
+// evaluation's setPose), starts from skinned positions already on the device
+// (isk::ClSkinning's buffers) and leaves its results in positionsBuffer() and
+// normalsBuffer(). The per-vertex state (marching, converged, contact, lost,
+// untracked) and the previous gradients live on the device between stages.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "isk/cl/field_evaluation.hpp"
+#include "isk/cl/runtime.hpp"
+#include "isk/surface_tracking.hpp"
+
+namespace isk {
+
+class ClSurfaceTracking {
+ public:
+  // `fields` (kept by reference, must outlive this) evaluates the
+  // character's composed field on the same context; `mesh` is uploaded.
+  // Throws isk::Error: kInvalidArgument for bad options or a mesh of another
+  // size, kOpenCl naming the failing call.
+  ClSurfaceTracking(ClFieldEvaluation& fields, const TrackingMesh& mesh,
+                    const SurfaceTrackingOptions& options = {});
+
+  // Stage by stage, as CpuSurfaceTracking (enqueued, not waited for).
+  // begin: the frame's pose (#joints) and the skinned positions and normals
+  // on the device (#V * 3 packed floats each; normals are the fallback of
+  // the normals stage).
+  void begin(const TransformList& skinning, const cl::Buffer& skinned_positions,
+             const cl::Buffer& skinned_normals);
+  void project(int steps);
+  void relax();
+  void smooth();
+  void finish();
+
+  // The whole frame; returns when the device is done, with lastTimes().
+  void run(const TransformList& skinning, const cl::Buffer& skinned_positions,
+           const cl::Buffer& skinned_normals);
+
+  // Uploads a working state (tests: both backends from the same input),
+  // after a begin() that set the pose.
+  void setState(const Matrix3Xf& positions,
+                const std::vector<TrackState>& states,
+                const Matrix4Xf& prev_gradients);
+
+  // Blocking reads of the working state and of the results.
+  void readPositions(Matrix3Xf& out);  // working positions (results after
+                                       // finish())
+  void readNormals(Matrix3Xf& out);
+  void readStates(std::vector<TrackState>& out);
+  void readBeta(std::vector<float>& out);  // beta, gamma per vertex
+  void readPreviousGradients(Matrix4Xf& out);
+  // Vertices stopped at a contact in the last frame (a blocking read of the
+  // states).
+  int contactCount();
+
+  // Device buffers of the results (#V * 3 packed floats), valid after
+  // finish() / run().
+  const cl::Buffer& positionsBuffer() const { return positions_[current_]; }
+  const cl::Buffer& normalsBuffer() const { return normals_; }
+
+  const TrackingStageTimes& lastTimes() const { return times_; }
+  const SurfaceTrackingOptions& options() const { return options_; }
+  int vertexCount() const { return vertex_count_; }
+  // Device memory of the tracking's own buffers.
+  size_t bytes() const { return bytes_; }
+
+ private:
+  enum Stage { kProjection, kRelaxation, kSmoothing, kNormals };
+  void launch(cl::Kernel& kernel, Stage stage);
+  void collectTimes();
+  void readFloats(const cl::Buffer& buffer, void* out, size_t bytes,
+                  const char* what);
+
+  ClFieldEvaluation* fields_;
+  std::shared_ptr<ClContext> context_;
+  SurfaceTrackingOptions options_;
+  int vertex_count_ = 0;
+  float diagonal_ = 0;
+  cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
+      copy_duplicates_, normals_kernel_;
+  cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
+      home_margins_, partners_, ring_offsets_, ring_neighbours_, ring_weights_,
+      ring_lengths_, triangles_, normal_offsets_, normal_triangles_;
+  cl::Buffer positions_[2];
+  int current_ = 0;
+  cl::Buffer states_, prev_gradients_, beta_[2], normals_;
+  cl::Buffer fallback_normals_;  // begin's skinned normals (a handle)
+  std::vector<std::pair<Stage, cl::Event>> events_;
+  TrackingStageTimes times_;
+  size_t bytes_ = 0;
+};
+
+}  // namespace isk

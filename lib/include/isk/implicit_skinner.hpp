@@ -1,0 +1,144 @@
+// Implicit skinning end to end (Vaillant et al. 2013): build once from a rig,
+// then per frame joint transforms in, positions and normals out.
+//
+//   isk::ImplicitSkinner skinner(isk::ClContext::create(), rig);
+//   skinner.run(isk::skinningTransforms(rig.skeleton, pose));
+//   skinner.readPositions(positions);  // or positionsBuffer() for interop
+//
+// Building (offline, on the CPU): the rig's implicit fields
+// (isk/implicit_fields.hpp: partition, HRBF fits, 32^3 grids, operators per
+// joint, iso values), the one-rings and mean value weights of tracking
+// (isk/surface_tracking.hpp), then one upload. A frame on the device:
+// geometric skinning (dual quaternions by default, LBS as an option) ->
+// rounds of (projection steps with the 55 degree contact stop, tangential
+// relaxation) -> beta diffusion and localized Laplacian smoothing ->
+// normals; everything stays on the device, nothing is read back inside the
+// frame. A vertex stopped (converged, at a contact, or out of every field)
+// does no more work; a vertex carried rigidly by one bone, far from the
+// others' supports, converges at its first step.
+//
+// Several skinners may share one ClContext (its program cache included).
+// CpuImplicitSkinner is the single-thread CPU reference with the same calls.
+#pragma once
+
+#include <memory>
+
+#include "isk/cl/field_evaluation.hpp"
+#include "isk/cl/runtime.hpp"
+#include "isk/cl/skinning.hpp"
+#include "isk/cl/surface_tracking.hpp"
+#include "isk/cpu_skinning.hpp"
+#include "isk/implicit_fields.hpp"
+#include "isk/rig.hpp"
+#include "isk/surface_tracking.hpp"
+
+namespace isk {
+
+struct ImplicitSkinnerOptions {
+  // Samples per bone, grid resolution, operators per joint, progress, ...
+  ImplicitFieldsOptions fields;
+  // Rounds, sigma, contact angle, tolerance, relaxation, smoothing: the
+  // paper's values by default.
+  SurfaceTrackingOptions tracking;
+  // The geometric skinning the march starts from.
+  SkinningMethod base_skinning = SkinningMethod::kDualQuaternion;
+  // Grid and operator table storage on the device.
+  FieldStorage storage = FieldStorage::kAuto;
+
+  // Names the first bad option (the fields' own options are validated by
+  // buildImplicitFields).
+  Validation validate() const;
+};
+
+// Milliseconds per stage of one frame.
+struct ImplicitStageTimes {
+  double upload_ms = 0;         // joint transforms
+  double skinning_ms = 0;       // base skinning
+  TrackingStageTimes tracking;  // projection, relaxation, smoothing, normals
+  double readback_ms = 0;       // last readPositions + readNormals
+  double total() const {
+    return upload_ms + skinning_ms + tracking.total() + readback_ms;
+  }
+};
+
+class ImplicitSkinner {
+ public:
+  // Builds the rig's fields with options.fields and uploads. Throws
+  // isk::Error: kInvalidArgument naming what is wrong in the rig or the
+  // options, kOpenCl naming the failing call.
+  ImplicitSkinner(std::shared_ptr<ClContext> context, const Rig& rig,
+                  const ImplicitSkinnerOptions& options = {});
+  // Uses fields built earlier for this rig (buildImplicitFields); shared
+  // with other skinners (e.g. the CPU reference) without a copy.
+  ImplicitSkinner(std::shared_ptr<ClContext> context, const Rig& rig,
+                  std::shared_ptr<const ImplicitFields> fields,
+                  const ImplicitSkinnerOptions& options = {});
+
+  // One frame: #joints skinning transforms (isk/pose.hpp). Returns when the
+  // device is done. Throws isk::Error(kInvalidArgument) for a pose of the
+  // wrong size or with non-finite transforms.
+  void run(const TransformList& skinning);
+
+  // Blocking reads of the last frame (#V by 3).
+  void readPositions(Matrix3Xf& out);
+  void readNormals(Matrix3Xf& out);
+  // The same results on the device: #V * 3 packed floats.
+  const cl::Buffer& positionsBuffer() const;
+  const cl::Buffer& normalsBuffer() const;
+  // Vertices stopped at a contact in the last frame (reads the states).
+  int contactCount();
+
+  const ImplicitStageTimes& lastTimes() const { return times_; }
+  const ImplicitFields& fields() const { return *fields_; }
+  const TrackingMesh& trackingMesh() const { return tracking_mesh_; }
+  ClSkinning& skinning() { return *skinning_; }
+  ClFieldEvaluation& fieldEvaluation() { return *field_evaluation_; }
+  ClSurfaceTracking& tracking() { return *tracking_; }
+  const ImplicitSkinnerOptions& options() const { return options_; }
+  ClContext& context() { return *context_; }
+  int vertexCount() const { return tracking_mesh_.vertexCount(); }
+
+ private:
+  std::shared_ptr<ClContext> context_;
+  ImplicitSkinnerOptions options_;
+  std::shared_ptr<const ImplicitFields> fields_;
+  TrackingMesh tracking_mesh_;
+  std::unique_ptr<ClSkinning> skinning_;
+  std::unique_ptr<ClFieldEvaluation> field_evaluation_;
+  std::unique_ptr<ClSurfaceTracking> tracking_;
+  ImplicitStageTimes times_;
+};
+
+// The CPU reference of ImplicitSkinner (CpuSkinning + CpuSurfaceTracking).
+class CpuImplicitSkinner {
+ public:
+  CpuImplicitSkinner(const Rig& rig,
+                     const ImplicitSkinnerOptions& options = {});
+  CpuImplicitSkinner(const Rig& rig,
+                     std::shared_ptr<const ImplicitFields> fields,
+                     const ImplicitSkinnerOptions& options = {});
+
+  void run(const TransformList& skinning);
+  const Matrix3Xf& positions() const { return tracking_->positions(); }
+  const Matrix3Xf& normals() const { return tracking_->normals(); }
+  void readPositions(Matrix3Xf& out) const { out = positions(); }
+  void readNormals(Matrix3Xf& out) const { out = normals(); }
+  int contactCount() const;
+
+  const ImplicitStageTimes& lastTimes() const { return times_; }
+  const ImplicitFields& fields() const { return *fields_; }
+  const TrackingMesh& trackingMesh() const { return tracking_mesh_; }
+  CpuSkinning& skinning() { return *skinning_; }
+  CpuSurfaceTracking& tracking() { return *tracking_; }
+  int vertexCount() const { return tracking_mesh_.vertexCount(); }
+
+ private:
+  ImplicitSkinnerOptions options_;
+  std::shared_ptr<const ImplicitFields> fields_;
+  TrackingMesh tracking_mesh_;
+  std::unique_ptr<CpuSkinning> skinning_;
+  std::unique_ptr<CpuSurfaceTracking> tracking_;
+  ImplicitStageTimes times_;
+};
+
+}  // namespace isk

@@ -1,0 +1,232 @@
+// Surface tracking (Vaillant et al. 2013, section 5), CPU reference: after
+// geometric skinning, each vertex marches back to its rest iso value in the
+// composed field by Newton steps (eq. 4), stops at a contact (a jump of the
+// gradient's direction), is relaxed tangentially between steps (eq. 5, 6),
+// and contact regions are smoothed at the end (eq. 7).
+//
+// Projection (eq. 4 with the sign fixed: f grows inward, so a vertex with
+// f < iso moves along +grad f):
+//   x <- x + sigma (iso - f(x)) grad f / |grad f|^2,   sigma = 0.35,
+// the move capped at max_step (a fraction of the bounding-box diagonal). A
+// step first compares the normalized gradient with the one of the vertex's
+// previous step: an angle above contact_angle (55 degrees) stops the vertex
+// (contact, it does not move). |f - iso| < tolerance (field units) stops it
+// as converged; f = 0 (outside every support) or a vanishing gradient stops
+// it as lost. A stopped vertex does no more work this frame.
+// Relaxation (eq. 5, 6), after each `projection_steps` steps, moves each
+// marching vertex towards the mean-value-weighted centroid of its one-ring,
+// tangentially (in the plane normal to grad f at the vertex):
+//   x <- x + mu T(sum_j w_j x_j - x),  mu = max(0, 1 - (|f - iso| - 1)^4),
+// with the rest pose's weights (isk/one_ring.hpp, RelaxationWeights).
+// Smoothing (eq. 7): beta = 1 on contact vertices, 0 elsewhere; diffused
+// `beta_diffusion` times over the one-ring (contact vertices stay at 1, the
+// others take the mean of themselves and their neighbours); then
+// `smoothing_steps` times x <- (1 - beta) x + beta centroid(one-ring).
+// Both use only neighbours within smoothing_radius (rest distance) of the
+// vertex. Crease vertices (see below) get a second weight gamma, diffused the
+// same way (`crease_diffusion` times), and `crease_steps` tangential Laplacian
+// steps: x <- x + (1 - beta) gamma T(centroid - x),
+// T removing the component along the ring's normal, so that vertices piled
+// in a crease spread out without the crease shrinking.
+// Boundary, isolated and duplicate vertices are neither relaxed nor smoothed.
+//
+// Contact by home field (home_contact, on by default; our addition, see
+// README "Surface tracking"): each vertex has a home field, the field of the
+// bone it was partitioned to. A vertex that geometric skinning pushed into
+// another part (the largest other field o exceeds its home field h by more
+// than at rest: o - h - margin > tolerance, with f > iso) marches instead to
+// the contact surface between the two parts, by Newton steps on
+// c = o - h - margin + contact_gap along grad(o - h), and stops there as a
+// contact. The paper's march would carry such a vertex out through the far
+// side of the other part when skinning put it past that part's bone (deep
+// folds, Figure 14(d)), and piles both parts' vertices on one surface at a
+// crease; contact_gap (field units) leaves the two parts' sheets a hair
+// apart instead of crossing. Fields joined to the home field by a blend or
+// bulge pair are not "other" parts: there the operator shapes the fold.
+// A vertex that converges onto another part's surface beyond its rest
+// margin ends in a crease between parts (a concave union edge, where the
+// march piles vertices from both sides): it is marked kCrease and smoothed
+// tangentially.
+// Duplicates (seam copies, see one_ring.hpp) copy their representative's
+// result; normals are area-weighted over the welded mesh where the rest
+// normals agree (so seams do not show and hard edges stay hard).
+//
+// The OpenCL twin is isk::ClSurfaceTracking (isk/cl/surface_tracking.hpp):
+// same stages, same formulas; tests compare them stage by stage.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "isk/field_composition.hpp"
+#include "isk/field_evaluation.hpp"
+#include "isk/field_grid.hpp"
+#include "isk/implicit_fields.hpp"
+#include "isk/mesh.hpp"
+#include "isk/one_ring.hpp"
+#include "isk/types.hpp"
+#include "isk/validation.hpp"
+#include "isk/vertex_normals.hpp"
+
+namespace isk {
+
+struct SurfaceTrackingOptions {
+  // Rounds of (projection_steps projection steps, then one relaxation). The
+  // paper relaxes after each pair of projection steps.
+  int rounds = 8;
+  int projection_steps = 2;
+  float sigma = 0.35f;                 // eq. 4
+  float contact_angle_degrees = 55.f;  // gradient jump that stops a vertex
+  float tolerance = 1e-3f;             // field units: converged below it
+  // Largest move of one projection step, fraction of the rest mesh's
+  // bounding-box diagonal (Newton steps explode where the gradient is weak).
+  float max_step = 0.02f;
+  // |grad f| * diagonal below it: the gradient has vanished (lost).
+  float min_gradient = 1e-3f;
+  bool relaxation = true;  // eq. 5, 6
+  // Contact by home field (see above) and the gap it leaves, field units.
+  bool home_contact = true;
+  float contact_gap = 0.05f;
+  int beta_diffusion = 1;   // eq. 7: diffusion iterations of beta
+  int smoothing_steps = 8;  // eq. 7: Laplacian steps
+  // Localized: diffusion and Laplacian steps use only the neighbours within
+  // this rest distance (fraction of the diagonal), so that the smoothed
+  // region has one size whatever the mesh's resolution (on a coarse mesh,
+  // a few rings would smooth whole limbs away).
+  float smoothing_radius = 0.02f;
+  // Creases (see above): diffusion iterations of gamma and tangential
+  // Laplacian steps.
+  int crease_diffusion = 5;
+  int crease_steps = 10;
+
+  // Names the first bad parameter and its valid range.
+  Validation validate() const;
+};
+
+// Per-vertex state of the march, kept between stages (on the device for
+// ClSurfaceTracking).
+enum class TrackState : uint8_t {
+  kMarching = 0,   // still moving
+  kConverged = 1,  // |f - iso| < tolerance
+  kContact = 2,    // stopped at a gradient jump (contact surface)
+  kLost = 3,       // left every support, or the gradient vanished
+  kUntracked = 4,  // iso value 0 (outside every field) or a seam duplicate
+  kCrease = 5,     // converged on another part's surface (home_contact)
+};
+
+const char* trackStateName(TrackState state);
+
+// The static per-vertex data of tracking, built once per character.
+struct TrackingMesh {
+  // Fields joined to a field by blend or bulge pairs, per field (#fields by
+  // kMaxPartners, -1 padded; more partners than that are treated as other
+  // parts).
+  static constexpr int kMaxPartners = 8;
+
+  OneRings rings;
+  RelaxationWeights relaxation;
+  std::vector<float> iso_values;    // #V, 0: untracked
+  std::vector<int> home_field;      // #V: field of the vertex's bone, -1
+  std::vector<float> home_margin;   // #V: max(0, o - h) at the bind pose
+  std::vector<int> field_partners;  // #fields * kMaxPartners
+  // Rest length of each one-ring edge, aligned with rings.neighbours.
+  std::vector<float> ring_lengths;
+  TriangleMatrix triangles;  // #F by 3
+  // Normals: per vertex the triangles of its welded group whose corner has
+  // a rest normal within ~8 degrees of its own (hard edges stay hard).
+  VertexTriangleAdjacency normal_adjacency;
+  float diagonal = 0;  // rest bounding-box diagonal (the model's size)
+
+  int vertexCount() const { return static_cast<int>(iso_values.size()); }
+  int trackedCount() const;
+
+  // Validates sizes (isk::Error kInvalidArgument) and builds the rings,
+  // weights, welded normal adjacency, home fields and margins of `mesh`
+  // (rest pose) from its implicit fields (isk/implicit_fields.hpp: iso
+  // values, partition, grids, composition).
+  static TrackingMesh build(const Mesh& mesh, const ImplicitFields& fields);
+};
+
+// A vertex's home field sample and the largest sample of the other parts'
+// fields (not the home field, not its blend or bulge partners), from the
+// #fields samples at a point (value, gradient; zero when none).
+struct HomeSamples {
+  Eigen::Vector4f home = Eigen::Vector4f::Zero();
+  Eigen::Vector4f other = Eigen::Vector4f::Zero();
+};
+HomeSamples homeSamples(const TrackingMesh& mesh, int vertex,
+                        const Eigen::Vector4f* per_field);
+
+// One frame's per-vertex results and counts.
+struct TrackingCounts {
+  int marching = 0, converged = 0, contact = 0, lost = 0, untracked = 0,
+      crease = 0;
+};
+TrackingCounts countStates(const std::vector<TrackState>& states);
+
+// Milliseconds per stage of one frame (host wall time on the CPU, profiling
+// events on OpenCL).
+struct TrackingStageTimes {
+  double projection_ms = 0;  // all projection steps
+  double relaxation_ms = 0;  // all relaxation steps
+  double smoothing_ms = 0;   // beta diffusion and Laplacian steps
+  double normals_ms = 0;     // seam copies and normals
+  double total() const {
+    return projection_ms + relaxation_ms + smoothing_ms + normals_ms;
+  }
+};
+
+// The CPU reference of a character's tracking. Keeps pointers to `fields`,
+// `composition` (may be null: union of all fields) and `mesh`: they must
+// outlive it.
+class CpuSurfaceTracking {
+ public:
+  CpuSurfaceTracking(const FieldGridSet& fields, const Composition* composition,
+                     const TrackingMesh& mesh,
+                     const SurfaceTrackingOptions& options = {});
+
+  // Stage by stage (what run() chains; tests call them one at a time).
+  // begin: the frame's pose (#joints skinning transforms) and the skinned
+  // positions (#V by 3) and normals (fallback of the normals stage).
+  void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
+             const Matrix3Xf& skinned_normals);
+  void project(int steps);
+  void relax();
+  void smooth();  // beta, its diffusion and the Laplacian steps
+  void finish();  // seam copies and normals
+
+  // The whole frame: begin, rounds x (project, relax), smooth, finish.
+  void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
+           const Matrix3Xf& skinned_normals);
+
+  // Replaces the working state (tests: both backends from the same input).
+  // prev_gradients: #V by 4, xyz the previous step's unit gradient, w 1 when
+  // set.
+  void setState(const Matrix3Xf& positions,
+                const std::vector<TrackState>& states,
+                const Matrix4Xf& prev_gradients);
+
+  const Matrix3Xf& positions() const { return positions_; }
+  const Matrix3Xf& normals() const { return normals_; }
+  const std::vector<TrackState>& states() const { return states_; }
+  // Two per vertex: beta (contacts, eq. 7) and gamma (creases).
+  const std::vector<float>& beta() const { return beta_; }
+  const Matrix4Xf& previousGradients() const { return prev_; }
+  const TrackingStageTimes& lastTimes() const { return times_; }
+  const SurfaceTrackingOptions& options() const { return options_; }
+
+ private:
+  const FieldGridSet* fields_;
+  const Composition* composition_;
+  const TrackingMesh* mesh_;
+  SurfaceTrackingOptions options_;
+  TransformList skinning_;
+  Matrix3Xf positions_, scratch_, fallback_normals_, normals_;
+  std::vector<TrackState> states_;
+  Matrix4Xf prev_;  // previous unit gradient, w = 1 when set
+  std::vector<float> beta_, beta_scratch_;
+  TrackingStageTimes times_;
+};
+
+}  // namespace isk

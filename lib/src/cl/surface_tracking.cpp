@@ -1,0 +1,402 @@
+#include "isk/cl/surface_tracking.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "isk/error.hpp"
+#include "stopwatch.hpp"
+
+namespace isk {
+namespace {
+
+size_t roundUp(size_t n, size_t multiple) {
+  return (n + multiple - 1) / multiple * multiple;
+}
+
+template <typename T>
+cl::Buffer uploadReadOnly(const cl::Context& context, const T* data,
+                          size_t count, size_t* bytes) {
+  // A zero-sized buffer is invalid in OpenCL: keep one element at least.
+  std::vector<T> padded(data, data + count);
+  if (padded.empty()) padded.resize(1);
+  *bytes += padded.size() * sizeof(T);
+  return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                    padded.size() * sizeof(T), padded.data());
+}
+
+template <typename T>
+cl::Buffer uploadReadOnly(const cl::Context& context, const std::vector<T>& v,
+                          size_t* bytes) {
+  return uploadReadOnly(context, v.data(), v.size(), bytes);
+}
+
+}  // namespace
+
+ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
+                                     const TrackingMesh& mesh,
+                                     const SurfaceTrackingOptions& options)
+    : fields_(&fields),
+      context_(fields.sharedContext()),
+      options_(options),
+      vertex_count_(mesh.vertexCount()),
+      diagonal_(mesh.diagonal) {
+  options.validate().throwIfFailed("SurfaceTrackingOptions");
+  if (mesh.rings.vertexCount() != vertex_count_ ||
+      mesh.relaxation.rules.size() != mesh.iso_values.size())
+    throw Error(ErrorCode::kInvalidArgument,
+                "ClSurfaceTracking: the tracking mesh is inconsistent (built "
+                "by TrackingMesh::build?)");
+  const cl::Context& ctx = context_->context();
+  const size_t n = static_cast<size_t>(std::max(vertex_count_, 1));
+  try {
+    cl::Program tracking = context_->program("tracking", fields.buildOptions());
+    begin_ = cl::Kernel(tracking, "track_begin");
+    project_ = cl::Kernel(tracking, "track_project");
+    relax_ = cl::Kernel(tracking, "track_relax");
+    beta_init_ = cl::Kernel(tracking, "track_beta_init");
+    beta_diffuse_ = cl::Kernel(tracking, "track_beta_diffuse");
+    smooth_ = cl::Kernel(tracking, "track_smooth");
+    copy_duplicates_ = cl::Kernel(tracking, "track_copy_duplicates");
+    normals_kernel_ =
+        cl::Kernel(context_->program("normals"), "vertex_normals");
+
+    iso_values_ = uploadReadOnly(ctx, mesh.iso_values, &bytes_);
+    representative_ = uploadReadOnly(ctx, mesh.rings.representative, &bytes_);
+    std::vector<uint8_t> rules(mesh.relaxation.rules.size());
+    for (size_t v = 0; v < rules.size(); ++v)
+      rules[v] = static_cast<uint8_t>(mesh.relaxation.rules[v]);
+    rules_ = uploadReadOnly(ctx, rules, &bytes_);
+    home_fields_ = uploadReadOnly(ctx, mesh.home_field, &bytes_);
+    home_margins_ = uploadReadOnly(ctx, mesh.home_margin, &bytes_);
+    partners_ = uploadReadOnly(ctx, mesh.field_partners, &bytes_);
+    ring_offsets_ = uploadReadOnly(ctx, mesh.rings.offsets, &bytes_);
+    ring_neighbours_ = uploadReadOnly(ctx, mesh.rings.neighbours, &bytes_);
+    ring_weights_ = uploadReadOnly(ctx, mesh.relaxation.weights, &bytes_);
+    ring_lengths_ = uploadReadOnly(ctx, mesh.ring_lengths, &bytes_);
+    triangles_ =
+        uploadReadOnly(ctx, mesh.triangles.data(),
+                       static_cast<size_t>(mesh.triangles.size()), &bytes_);
+    normal_offsets_ =
+        uploadReadOnly(ctx, mesh.normal_adjacency.offsets, &bytes_);
+    normal_triangles_ =
+        uploadReadOnly(ctx, mesh.normal_adjacency.triangles, &bytes_);
+    const size_t floats3 = 3 * n * sizeof(float);
+    for (auto& b : positions_) b = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats3);
+    normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats3);
+    states_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n);
+    prev_gradients_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n * 4 * sizeof(float));
+    for (auto& b : beta_)
+      b = cl::Buffer(ctx, CL_MEM_READ_WRITE, 2 * n * sizeof(float));
+    std::vector<uint8_t> kinds(mesh.rings.kinds.size());
+    for (size_t v = 0; v < kinds.size(); ++v)
+      kinds[v] = static_cast<uint8_t>(mesh.rings.kinds[v]);
+    kinds_ = uploadReadOnly(ctx, kinds, &bytes_);
+    bytes_ += 3 * floats3 + n + n * 4 * sizeof(float) + 4 * n * sizeof(float);
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSurfaceTracking: uploading the tracking mesh to " +
+                        context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage) {
+  const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
+  cl::Event event;
+  if (context_->profilingEnabled()) {
+    context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
+                                           cl::NullRange, nullptr, &event);
+    events_.emplace_back(stage, event);
+    return;
+  }
+  // Without profiling, each launch is waited for and timed on the host.
+  const auto start = std::chrono::steady_clock::now();
+  context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
+                                         cl::NullRange, nullptr, &event);
+  event.wait();
+  const double ms = detail::millisecondsSince(start);
+  switch (stage) {
+    case kProjection:
+      times_.projection_ms += ms;
+      break;
+    case kRelaxation:
+      times_.relaxation_ms += ms;
+      break;
+    case kSmoothing:
+      times_.smoothing_ms += ms;
+      break;
+    case kNormals:
+      times_.normals_ms += ms;
+      break;
+  }
+}
+
+void ClSurfaceTracking::collectTimes() {
+  for (auto& [stage, event] : events_) {
+    const double ms = eventMilliseconds(event);
+    switch (stage) {
+      case kProjection:
+        times_.projection_ms += ms;
+        break;
+      case kRelaxation:
+        times_.relaxation_ms += ms;
+        break;
+      case kSmoothing:
+        times_.smoothing_ms += ms;
+        break;
+      case kNormals:
+        times_.normals_ms += ms;
+        break;
+    }
+  }
+  events_.clear();
+}
+
+void ClSurfaceTracking::begin(const TransformList& skinning,
+                              const cl::Buffer& skinned_positions,
+                              const cl::Buffer& skinned_normals) {
+  const size_t needed = 3 * static_cast<size_t>(vertex_count_) * sizeof(float);
+  try {
+    if (skinned_positions.getInfo<CL_MEM_SIZE>() < needed ||
+        skinned_normals.getInfo<CL_MEM_SIZE>() < needed)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "ClSurfaceTracking::begin: the skinned buffers hold fewer "
+                  "than " +
+                      std::to_string(vertex_count_) + " vertices");
+    fields_->setPose(skinning);  // validates the pose
+    times_ = {};
+    events_.clear();
+    current_ = 0;
+    fallback_normals_ = skinned_normals;
+    const cl_uint n = static_cast<cl_uint>(vertex_count_);
+    begin_.setArg(0, n);
+    begin_.setArg(1, skinned_positions);
+    begin_.setArg(2, positions_[current_]);
+    begin_.setArg(3, iso_values_);
+    begin_.setArg(4, representative_);
+    begin_.setArg(5, states_);
+    begin_.setArg(6, prev_gradients_);
+    launch(begin_, kProjection);
+  } catch (const cl::Error& e) {
+    throwClError(e,
+                 "ClSurfaceTracking::begin on " + context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::project(int steps) {
+  const float cos_contact = std::cos(options_.contact_angle_degrees *
+                                     static_cast<float>(M_PI) / 180.f);
+  const float max_step = options_.max_step * diagonal_;
+  const float min_gradient =
+      diagonal_ > 0 ? options_.min_gradient / diagonal_ : options_.min_gradient;
+  try {
+    project_.setArg(0, static_cast<cl_uint>(vertex_count_));
+    project_.setArg(1, positions_[current_]);
+    project_.setArg(2, iso_values_);
+    project_.setArg(3, states_);
+    project_.setArg(4, prev_gradients_);
+    project_.setArg(5, static_cast<cl_int>(steps));
+    project_.setArg(6, cl_float4{{options_.sigma, cos_contact,
+                                  options_.tolerance, max_step}});
+    project_.setArg(7, min_gradient);
+    project_.setArg(8, home_fields_);
+    project_.setArg(9, home_margins_);
+    project_.setArg(10, partners_);
+    project_.setArg(11, cl_float4{{options_.home_contact ? 1.f : 0.f,
+                                   options_.contact_gap, 0.f, 0.f}});
+    fields_->setFieldArgs(project_, 12);
+    fields_->setCompositionArgs(project_, 16);
+    launch(project_, kProjection);
+  } catch (const cl::Error& e) {
+    throwClError(
+        e, "ClSurfaceTracking::project on " + context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::relax() {
+  try {
+    relax_.setArg(0, static_cast<cl_uint>(vertex_count_));
+    relax_.setArg(1, positions_[current_]);
+    relax_.setArg(2, positions_[1 - current_]);
+    relax_.setArg(3, iso_values_);
+    relax_.setArg(4, states_);
+    relax_.setArg(5, prev_gradients_);
+    relax_.setArg(6, rules_);
+    relax_.setArg(7, ring_offsets_);
+    relax_.setArg(8, ring_neighbours_);
+    relax_.setArg(9, ring_weights_);
+    relax_.setArg(10, home_fields_);
+    relax_.setArg(11, home_margins_);
+    relax_.setArg(12, partners_);
+    relax_.setArg(13, cl_float4{{options_.home_contact ? 1.f : 0.f,
+                                 options_.contact_gap, 0.f, 0.f}});
+    fields_->setFieldArgs(relax_, 14);
+    fields_->setCompositionArgs(relax_, 18);
+    launch(relax_, kRelaxation);
+    current_ = 1 - current_;
+  } catch (const cl::Error& e) {
+    throwClError(e,
+                 "ClSurfaceTracking::relax on " + context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::smooth() {
+  try {
+    const cl_uint n = static_cast<cl_uint>(vertex_count_);
+    const float radius = options_.smoothing_radius * diagonal_;
+    beta_init_.setArg(0, n);
+    beta_init_.setArg(1, states_);
+    beta_init_.setArg(2, beta_[0]);
+    launch(beta_init_, kSmoothing);
+    int b = 0;
+    const int diffusions =
+        std::max(options_.beta_diffusion, options_.crease_diffusion);
+    for (int k = 0; k < diffusions; ++k) {
+      beta_diffuse_.setArg(
+          8, cl_float2{{k < options_.beta_diffusion ? 1.f : 0.f,
+                        k < options_.crease_diffusion ? 1.f : 0.f}});
+      beta_diffuse_.setArg(0, n);
+      beta_diffuse_.setArg(1, states_);
+      beta_diffuse_.setArg(2, ring_offsets_);
+      beta_diffuse_.setArg(3, ring_neighbours_);
+      beta_diffuse_.setArg(4, ring_lengths_);
+      beta_diffuse_.setArg(5, radius);
+      beta_diffuse_.setArg(6, beta_[b]);
+      beta_diffuse_.setArg(7, beta_[1 - b]);
+      launch(beta_diffuse_, kSmoothing);
+      b = 1 - b;
+    }
+    if (b != 0) {  // readBeta reads beta_[0]
+      context_->queue().enqueueCopyBuffer(beta_[1], beta_[0], 0, 0,
+                                          2 * vertex_count_ * sizeof(float));
+    }
+    const int steps = std::max(options_.smoothing_steps, options_.crease_steps);
+    for (int k = 0; k < steps; ++k) {
+      smooth_.setArg(10, cl_float2{{k < options_.smoothing_steps ? 1.f : 0.f,
+                                    k < options_.crease_steps ? 1.f : 0.f}});
+      smooth_.setArg(0, n);
+      smooth_.setArg(1, rules_);
+      smooth_.setArg(2, kinds_);
+      smooth_.setArg(3, ring_offsets_);
+      smooth_.setArg(4, ring_neighbours_);
+      smooth_.setArg(5, ring_lengths_);
+      smooth_.setArg(6, radius);
+      smooth_.setArg(7, beta_[0]);
+      smooth_.setArg(8, positions_[current_]);
+      smooth_.setArg(9, positions_[1 - current_]);
+      launch(smooth_, kSmoothing);
+      current_ = 1 - current_;
+    }
+  } catch (const cl::Error& e) {
+    throwClError(e,
+                 "ClSurfaceTracking::smooth on " + context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::finish() {
+  try {
+    const cl_uint n = static_cast<cl_uint>(vertex_count_);
+    copy_duplicates_.setArg(0, n);
+    copy_duplicates_.setArg(1, representative_);
+    copy_duplicates_.setArg(2, positions_[current_]);
+    copy_duplicates_.setArg(3, positions_[1 - current_]);
+    launch(copy_duplicates_, kNormals);
+    current_ = 1 - current_;
+    normals_kernel_.setArg(0, n);
+    normals_kernel_.setArg(1, positions_[current_]);
+    normals_kernel_.setArg(2, triangles_);
+    normals_kernel_.setArg(3, normal_offsets_);
+    normals_kernel_.setArg(4, normal_triangles_);
+    normals_kernel_.setArg(5, fallback_normals_);
+    normals_kernel_.setArg(6, normals_);
+    launch(normals_kernel_, kNormals);
+  } catch (const cl::Error& e) {
+    throwClError(e,
+                 "ClSurfaceTracking::finish on " + context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::run(const TransformList& skinning,
+                            const cl::Buffer& skinned_positions,
+                            const cl::Buffer& skinned_normals) {
+  begin(skinning, skinned_positions, skinned_normals);
+  for (int r = 0; r < options_.rounds; ++r) {
+    project(options_.projection_steps);
+    if (options_.relaxation) relax();
+  }
+  smooth();
+  finish();
+  try {
+    context_->queue().finish();
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSurfaceTracking::run on " + context_->info().describe());
+  }
+  collectTimes();
+}
+
+void ClSurfaceTracking::setState(const Matrix3Xf& positions,
+                                 const std::vector<TrackState>& states,
+                                 const Matrix4Xf& prev_gradients) {
+  if (positions.rows() != vertex_count_ ||
+      static_cast<int>(states.size()) != vertex_count_ ||
+      prev_gradients.rows() != vertex_count_)
+    throw Error(ErrorCode::kInvalidArgument,
+                "ClSurfaceTracking::setState: expected " +
+                    std::to_string(vertex_count_) + " rows");
+  try {
+    const cl::CommandQueue& queue = context_->queue();
+    queue.enqueueWriteBuffer(positions_[current_], CL_TRUE, 0,
+                             positions.size() * sizeof(float),
+                             positions.data());
+    queue.enqueueWriteBuffer(states_, CL_TRUE, 0, states.size(), states.data());
+    queue.enqueueWriteBuffer(prev_gradients_, CL_TRUE, 0,
+                             prev_gradients.size() * sizeof(float),
+                             prev_gradients.data());
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSurfaceTracking::setState");
+  }
+}
+
+void ClSurfaceTracking::readFloats(const cl::Buffer& buffer, void* out,
+                                   size_t bytes, const char* what) {
+  try {
+    context_->queue().enqueueReadBuffer(buffer, CL_TRUE, 0, bytes, out);
+  } catch (const cl::Error& e) {
+    throwClError(e, std::string("ClSurfaceTracking::") + what);
+  }
+}
+
+void ClSurfaceTracking::readPositions(Matrix3Xf& out) {
+  out.resize(vertex_count_, 3);
+  readFloats(positions_[current_], out.data(), out.size() * sizeof(float),
+             "readPositions");
+}
+
+void ClSurfaceTracking::readNormals(Matrix3Xf& out) {
+  out.resize(vertex_count_, 3);
+  readFloats(normals_, out.data(), out.size() * sizeof(float), "readNormals");
+}
+
+void ClSurfaceTracking::readStates(std::vector<TrackState>& out) {
+  out.resize(vertex_count_);
+  readFloats(states_, out.data(), out.size(), "readStates");
+}
+
+void ClSurfaceTracking::readBeta(std::vector<float>& out) {
+  out.resize(2 * static_cast<size_t>(vertex_count_));
+  readFloats(beta_[0], out.data(), out.size() * sizeof(float), "readBeta");
+}
+
+void ClSurfaceTracking::readPreviousGradients(Matrix4Xf& out) {
+  out.resize(vertex_count_, 4);
+  readFloats(prev_gradients_, out.data(), out.size() * sizeof(float),
+             "readPreviousGradients");
+}
+
+int ClSurfaceTracking::contactCount() {
+  std::vector<TrackState> states;
+  readStates(states);
+  return countStates(states).contact;
+}
+
+}  // namespace isk

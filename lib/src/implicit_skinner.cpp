@@ -1,0 +1,141 @@
+#include "isk/implicit_skinner.hpp"
+
+#include <chrono>
+#include <string>
+
+#include "isk/error.hpp"
+
+namespace isk {
+
+namespace {
+
+std::shared_ptr<const ImplicitFields> checkedFields(
+    const Rig& rig, std::shared_ptr<const ImplicitFields> fields) {
+  if (!fields)
+    throw Error(ErrorCode::kInvalidArgument, "implicit skinner: no fields");
+  if (static_cast<int>(fields->iso_values.size()) != rig.mesh.vertexCount())
+    throw Error(ErrorCode::kInvalidArgument,
+                "implicit skinner: the fields hold " +
+                    std::to_string(fields->iso_values.size()) +
+                    " iso values but " + rig.source + " has " +
+                    std::to_string(rig.mesh.vertexCount()) +
+                    " vertices (built for another rig?)");
+  for (const FieldGrid& g : fields->grids.grids)
+    if (g.joint < 0 || g.joint >= rig.skeleton.jointCount())
+      throw Error(ErrorCode::kInvalidArgument,
+                  "implicit skinner: a field belongs to joint " +
+                      std::to_string(g.joint) + " but " + rig.source + " has " +
+                      std::to_string(rig.skeleton.jointCount()) +
+                      " joints (built for another rig?)");
+  return fields;
+}
+
+std::shared_ptr<const ImplicitFields> buildFields(
+    const Rig& rig, const ImplicitSkinnerOptions& options) {
+  options.validate().throwIfFailed("ImplicitSkinnerOptions");
+  return std::make_shared<const ImplicitFields>(
+      buildImplicitFields(rig, options.fields));
+}
+
+}  // namespace
+
+Validation ImplicitSkinnerOptions::validate() const {
+  if (const Validation v = tracking.validate(); !v)
+    return Validation::fail("tracking: " + v.reason());
+  return Validation::ok();
+}
+
+ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
+                                 const Rig& rig,
+                                 const ImplicitSkinnerOptions& options)
+    : ImplicitSkinner(std::move(context), rig, buildFields(rig, options),
+                      options) {}
+
+ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
+                                 const Rig& rig,
+                                 std::shared_ptr<const ImplicitFields> fields,
+                                 const ImplicitSkinnerOptions& options)
+    : context_(std::move(context)),
+      options_(options),
+      fields_(checkedFields(rig, std::move(fields))) {
+  if (!context_)
+    throw Error(ErrorCode::kInvalidArgument, "ImplicitSkinner: no context");
+  options.validate().throwIfFailed("ImplicitSkinnerOptions");
+  rig.validate().throwIfFailed(rig.source);
+  tracking_mesh_ = TrackingMesh::build(rig.mesh, *fields_);
+  const int joints = rig.skeleton.jointCount();
+  skinning_ =
+      std::make_unique<ClSkinning>(context_, rig.mesh, rig.weights, joints);
+  field_evaluation_ = std::make_unique<ClFieldEvaluation>(
+      context_, fields_->grids, joints, options.storage, &fields_->composition);
+  tracking_ = std::make_unique<ClSurfaceTracking>(
+      *field_evaluation_, tracking_mesh_, options.tracking);
+}
+
+void ImplicitSkinner::run(const TransformList& skinning) {
+  times_ = {};
+  skinning_->run(options_.base_skinning, skinning,
+                 /*recompute_normals=*/false);
+  tracking_->run(skinning, skinning_->positionsBuffer(),
+                 skinning_->normalsBuffer());
+  times_.upload_ms =
+      skinning_->lastTimes().upload_ms + field_evaluation_->lastUploadMs();
+  times_.skinning_ms = skinning_->lastTimes().skinning_ms;
+  times_.tracking = tracking_->lastTimes();
+}
+
+void ImplicitSkinner::readPositions(Matrix3Xf& out) {
+  const auto start = std::chrono::steady_clock::now();
+  tracking_->readPositions(out);
+  times_.readback_ms += std::chrono::duration<double, std::milli>(
+                            std::chrono::steady_clock::now() - start)
+                            .count();
+}
+
+void ImplicitSkinner::readNormals(Matrix3Xf& out) {
+  const auto start = std::chrono::steady_clock::now();
+  tracking_->readNormals(out);
+  times_.readback_ms += std::chrono::duration<double, std::milli>(
+                            std::chrono::steady_clock::now() - start)
+                            .count();
+}
+
+const cl::Buffer& ImplicitSkinner::positionsBuffer() const {
+  return tracking_->positionsBuffer();
+}
+const cl::Buffer& ImplicitSkinner::normalsBuffer() const {
+  return tracking_->normalsBuffer();
+}
+int ImplicitSkinner::contactCount() { return tracking_->contactCount(); }
+
+CpuImplicitSkinner::CpuImplicitSkinner(const Rig& rig,
+                                       const ImplicitSkinnerOptions& options)
+    : CpuImplicitSkinner(rig, buildFields(rig, options), options) {}
+
+CpuImplicitSkinner::CpuImplicitSkinner(
+    const Rig& rig, std::shared_ptr<const ImplicitFields> fields,
+    const ImplicitSkinnerOptions& options)
+    : options_(options), fields_(checkedFields(rig, std::move(fields))) {
+  options.validate().throwIfFailed("ImplicitSkinnerOptions");
+  rig.validate().throwIfFailed(rig.source);
+  tracking_mesh_ = TrackingMesh::build(rig.mesh, *fields_);
+  skinning_ = std::make_unique<CpuSkinning>(rig.mesh, rig.weights,
+                                            rig.skeleton.jointCount());
+  tracking_ = std::make_unique<CpuSurfaceTracking>(
+      fields_->grids, &fields_->composition, tracking_mesh_, options.tracking);
+}
+
+void CpuImplicitSkinner::run(const TransformList& skinning) {
+  times_ = {};
+  skinning_->run(options_.base_skinning, skinning,
+                 /*recompute_normals=*/false);
+  tracking_->run(skinning, skinning_->positions(), skinning_->normals());
+  times_.skinning_ms = skinning_->lastTimes().skinning_ms;
+  times_.tracking = tracking_->lastTimes();
+}
+
+int CpuImplicitSkinner::contactCount() const {
+  return countStates(tracking_->states()).contact;
+}
+
+}  // namespace isk

@@ -1,0 +1,534 @@
+#include "isk/surface_tracking.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "isk/error.hpp"
+#include "isk/mesh_metrics.hpp"
+
+namespace isk {
+
+namespace {
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+// Rest normals closer than this share a smoothed normal across a seam.
+constexpr float kSameNormalCos = 0.99f;
+
+}  // namespace
+
+Validation SurfaceTrackingOptions::validate() const {
+  auto bad = [](const std::string& what) { return Validation::fail(what); };
+  if (rounds < 0 || rounds > 1000)
+    return bad("rounds " + std::to_string(rounds) + ": expected 0..1000");
+  if (projection_steps < 1 || projection_steps > 100)
+    return bad("projection_steps " + std::to_string(projection_steps) +
+               ": expected 1..100");
+  if (!(sigma > 0 && sigma <= 1))
+    return bad("sigma " + std::to_string(sigma) + ": expected (0, 1]");
+  if (!(contact_angle_degrees > 0 && contact_angle_degrees <= 180))
+    return bad("contact_angle_degrees " +
+               std::to_string(contact_angle_degrees) + ": expected (0, 180]");
+  if (!(tolerance > 0 && tolerance < 1))
+    return bad("tolerance " + std::to_string(tolerance) +
+               ": expected field units in (0, 1)");
+  if (!(max_step > 0 && max_step <= 1))
+    return bad("max_step " + std::to_string(max_step) +
+               ": expected a fraction of the diagonal in (0, 1]");
+  if (!(contact_gap >= 0 && contact_gap < 0.5f))
+    return bad("contact_gap " + std::to_string(contact_gap) +
+               ": expected field units in [0, 0.5)");
+  if (!(min_gradient >= 0 && std::isfinite(min_gradient)))
+    return bad("min_gradient " + std::to_string(min_gradient) +
+               ": expected >= 0");
+  if (beta_diffusion < 0 || beta_diffusion > 1000)
+    return bad("beta_diffusion " + std::to_string(beta_diffusion) +
+               ": expected 0..1000");
+  if (!(smoothing_radius >= 0 && smoothing_radius <= 1))
+    return bad("smoothing_radius " + std::to_string(smoothing_radius) +
+               ": expected a fraction of the diagonal in [0, 1]");
+  if (smoothing_steps < 0 || smoothing_steps > 1000)
+    return bad("smoothing_steps " + std::to_string(smoothing_steps) +
+               ": expected 0..1000");
+  if (crease_diffusion < 0 || crease_diffusion > 1000)
+    return bad("crease_diffusion " + std::to_string(crease_diffusion) +
+               ": expected 0..1000");
+  if (crease_steps < 0 || crease_steps > 1000)
+    return bad("crease_steps " + std::to_string(crease_steps) +
+               ": expected 0..1000");
+  return Validation::ok();
+}
+
+const char* trackStateName(TrackState state) {
+  switch (state) {
+    case TrackState::kMarching:
+      return "marching";
+    case TrackState::kConverged:
+      return "converged";
+    case TrackState::kContact:
+      return "contact";
+    case TrackState::kLost:
+      return "lost";
+    case TrackState::kUntracked:
+      return "untracked";
+    case TrackState::kCrease:
+      return "crease";
+  }
+  return "?";
+}
+
+int TrackingMesh::trackedCount() const {
+  int count = 0;
+  for (int v = 0; v < vertexCount(); ++v)
+    if (iso_values[v] > 0 && rings.representative[v] == v) ++count;
+  return count;
+}
+
+TrackingMesh TrackingMesh::build(const Mesh& mesh,
+                                 const ImplicitFields& fields) {
+  const std::vector<float>& iso_values = fields.iso_values;
+  mesh.validate().throwIfFailed("surface tracking");
+  if (static_cast<int>(iso_values.size()) != mesh.vertexCount())
+    throw Error(ErrorCode::kInvalidArgument,
+                "surface tracking: " + std::to_string(iso_values.size()) +
+                    " iso values for " + std::to_string(mesh.vertexCount()) +
+                    " vertices");
+  for (size_t v = 0; v < iso_values.size(); ++v)
+    if (!(iso_values[v] >= 0 && iso_values[v] <= 1))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "surface tracking: vertex " + std::to_string(v) + " (" +
+                      mesh.describeVertex(static_cast<int>(v)) +
+                      ") has iso value " + std::to_string(iso_values[v]) +
+                      ", expected [0, 1]");
+  TrackingMesh out;
+  out.rings = OneRings::build(mesh.positions, mesh.triangles);
+  out.relaxation = RelaxationWeights::build(out.rings, mesh.positions);
+  out.iso_values = iso_values;
+  out.triangles = mesh.triangles;
+  out.diagonal = boundingBoxDiagonal(mesh.positions);
+  out.ring_lengths.resize(out.rings.neighbours.size());
+  for (int v = 0; v < mesh.vertexCount(); ++v)
+    for (uint32_t i = out.rings.offsets[v]; i < out.rings.offsets[v + 1]; ++i)
+      out.ring_lengths[i] =
+          (mesh.positions.row(out.rings.neighbours[i]) - mesh.positions.row(v))
+              .norm();
+
+  // Normal adjacency over the welded mesh: a vertex gathers the triangles
+  // of every vertex of its group whose rest normal agrees with its own.
+  const int vertex_count = mesh.vertexCount();
+  const VertexTriangleAdjacency plain =
+      VertexTriangleAdjacency::build(mesh.triangles, vertex_count);
+  std::vector<std::vector<int>> members(vertex_count);
+  for (int v = 0; v < vertex_count; ++v)
+    members[out.rings.representative[v]].push_back(v);
+  out.normal_adjacency.offsets.assign(vertex_count + 1, 0);
+  for (int v = 0; v < vertex_count; ++v) {
+    out.normal_adjacency.offsets[v] =
+        static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+    const Eigen::Vector3f n = mesh.normals.row(v).transpose();
+    for (int u : members[out.rings.representative[v]]) {
+      if (u != v && !(mesh.normals.row(u).dot(n) >= kSameNormalCos)) continue;
+      out.normal_adjacency.triangles.insert(
+          out.normal_adjacency.triangles.end(),
+          plain.triangles.begin() + plain.offsets[u],
+          plain.triangles.begin() + plain.offsets[u + 1]);
+    }
+  }
+  out.normal_adjacency.offsets[vertex_count] =
+      static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+
+  // Home fields, partners and the rest margins.
+  const int field_count = fields.grids.fieldCount();
+  out.field_partners.assign(static_cast<size_t>(field_count) * kMaxPartners,
+                            -1);
+  auto addPartner = [&](int field, int partner) {
+    if (field < 0 || field >= field_count) return;
+    int* row = &out.field_partners[static_cast<size_t>(field) * kMaxPartners];
+    for (int k = 0; k < kMaxPartners; ++k) {
+      if (row[k] == partner) return;
+      if (row[k] < 0) {
+        row[k] = partner;
+        return;
+      }
+    }
+  };
+  for (const int k : fields.composition.blended_pairs) {
+    const FieldPair& pair = fields.composition.pairs.at(k);
+    addPartner(pair.field_a, pair.field_b);
+    addPartner(pair.field_b, pair.field_a);
+  }
+  out.home_field.assign(vertex_count, -1);
+  out.home_margin.assign(vertex_count, 0.f);
+  const std::vector<int>& vertex_joint = fields.partition.vertex_joint;
+  if (static_cast<int>(vertex_joint.size()) == vertex_count &&
+      field_count > 0) {
+    for (int v = 0; v < vertex_count; ++v) {
+      const int joint = vertex_joint[v];
+      if (joint >= 0 &&
+          joint < static_cast<int>(fields.grids.field_of_joint.size()))
+        out.home_field[v] = fields.grids.field_of_joint[joint];
+    }
+    int joint_count = 0;
+    for (const FieldGrid& g : fields.grids.grids)
+      joint_count = std::max(joint_count, g.joint + 1);
+    const TransformList identity(joint_count, Eigen::Affine3f::Identity());
+    const ComposedFieldSampler sampler(fields.grids, identity,
+                                       &fields.composition);
+    std::vector<Eigen::Vector4f> per_field(field_count);
+    for (int v = 0; v < vertex_count; ++v) {
+      if (out.home_field[v] < 0) continue;
+      sampler.sample(mesh.positions.row(v).transpose(), per_field.data());
+      const HomeSamples home = homeSamples(out, v, per_field.data());
+      out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
+    }
+  }
+  return out;
+}
+
+HomeSamples homeSamples(const TrackingMesh& mesh, int vertex,
+                        const Eigen::Vector4f* per_field) {
+  HomeSamples out;
+  const int home = mesh.home_field[vertex];
+  if (home < 0) return out;
+  out.home = per_field[home];
+  const int field_count =
+      static_cast<int>(mesh.field_partners.size()) / TrackingMesh::kMaxPartners;
+  const int* partners = &mesh.field_partners[static_cast<size_t>(home) *
+                                             TrackingMesh::kMaxPartners];
+  for (int i = 0; i < field_count; ++i) {
+    if (i == home) continue;
+    bool partner = false;
+    for (int k = 0; k < TrackingMesh::kMaxPartners; ++k)
+      partner = partner || partners[k] == i;
+    if (partner) continue;
+    if (per_field[i][0] > out.other[0]) out.other = per_field[i];
+  }
+  return out;
+}
+
+TrackingCounts countStates(const std::vector<TrackState>& states) {
+  TrackingCounts c;
+  for (TrackState s : states) {
+    switch (s) {
+      case TrackState::kMarching:
+        ++c.marching;
+        break;
+      case TrackState::kConverged:
+        ++c.converged;
+        break;
+      case TrackState::kContact:
+        ++c.contact;
+        break;
+      case TrackState::kLost:
+        ++c.lost;
+        break;
+      case TrackState::kUntracked:
+        ++c.untracked;
+        break;
+      case TrackState::kCrease:
+        ++c.crease;
+        break;
+    }
+  }
+  return c;
+}
+
+CpuSurfaceTracking::CpuSurfaceTracking(const FieldGridSet& fields,
+                                       const Composition* composition,
+                                       const TrackingMesh& mesh,
+                                       const SurfaceTrackingOptions& options)
+    : fields_(&fields),
+      composition_(composition),
+      mesh_(&mesh),
+      options_(options) {
+  options.validate().throwIfFailed("SurfaceTrackingOptions");
+  if (mesh.rings.vertexCount() != mesh.vertexCount() ||
+      mesh.relaxation.rules.size() != mesh.iso_values.size())
+    throw Error(ErrorCode::kInvalidArgument,
+                "CpuSurfaceTracking: the tracking mesh is inconsistent (built "
+                "by TrackingMesh::build?)");
+}
+
+void CpuSurfaceTracking::begin(const TransformList& skinning,
+                               const Matrix3Xf& skinned_positions,
+                               const Matrix3Xf& skinned_normals) {
+  const int n = mesh_->vertexCount();
+  if (skinned_positions.rows() != n || skinned_normals.rows() != n)
+    throw Error(ErrorCode::kInvalidArgument,
+                "CpuSurfaceTracking::begin: " +
+                    std::to_string(skinned_positions.rows()) +
+                    " positions and " + std::to_string(skinned_normals.rows()) +
+                    " normals for a mesh of " + std::to_string(n) +
+                    " vertices");
+  for (const FieldGrid& g : fields_->grids)
+    if (g.joint < 0 || g.joint >= static_cast<int>(skinning.size()))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "CpuSurfaceTracking::begin: a field belongs to joint " +
+                      std::to_string(g.joint) + " but " +
+                      std::to_string(skinning.size()) +
+                      " transforms were given");
+  skinning_ = skinning;
+  positions_ = skinned_positions;
+  fallback_normals_ = skinned_normals;
+  states_.resize(n);
+  prev_.setZero(n, 4);
+  for (int v = 0; v < n; ++v)
+    states_[v] = mesh_->iso_values[v] > 0 && mesh_->rings.representative[v] == v
+                     ? TrackState::kMarching
+                     : TrackState::kUntracked;
+  beta_.assign(2 * static_cast<size_t>(n), 0.f);
+  times_ = {};
+}
+
+void CpuSurfaceTracking::setState(const Matrix3Xf& positions,
+                                  const std::vector<TrackState>& states,
+                                  const Matrix4Xf& prev_gradients) {
+  const int n = mesh_->vertexCount();
+  if (positions.rows() != n || static_cast<int>(states.size()) != n ||
+      prev_gradients.rows() != n)
+    throw Error(ErrorCode::kInvalidArgument,
+                "CpuSurfaceTracking::setState: expected " + std::to_string(n) +
+                    " rows");
+  positions_ = positions;
+  states_ = states;
+  prev_ = prev_gradients;
+}
+
+void CpuSurfaceTracking::project(int steps) {
+  const auto start = std::chrono::steady_clock::now();
+  const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
+  const float cos_contact = std::cos(options_.contact_angle_degrees *
+                                     static_cast<float>(M_PI) / 180.f);
+  const float max_step = options_.max_step * mesh_->diagonal;
+  const float min_gradient = mesh_->diagonal > 0
+                                 ? options_.min_gradient / mesh_->diagonal
+                                 : options_.min_gradient;
+  const int n = mesh_->vertexCount();
+  std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
+  for (int v = 0; v < n; ++v) {
+    for (int s = 0; s < steps; ++s) {
+      if (states_[v] != TrackState::kMarching) break;
+      Eigen::Vector3f x = positions_.row(v).transpose();
+      const Eigen::Vector4f sample = sampler.sample(x, per_field.data());
+      const float f = sample[0];
+      const Eigen::Vector3f g = sample.tail<3>();
+      const float g_len = g.norm();
+      if (!(f > 0.f) || !(g_len > min_gradient)) {
+        states_[v] = TrackState::kLost;
+        break;
+      }
+      const float iso = mesh_->iso_values[v];
+      float entered = 0.f;  // how far another part's field exceeds home
+      if (options_.home_contact && mesh_->home_field[v] >= 0) {
+        const HomeSamples home = homeSamples(*mesh_, v, per_field.data());
+        entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
+        bool marching_to_contact = prev_(v, 3) == 2.f;
+        // Out of the other part's grip (left through the surface): back
+        // to the paper's march.
+        if (marching_to_contact && f < iso - options_.tolerance) {
+          marching_to_contact = false;
+          prev_(v, 3) = 0.f;
+        }
+        if (home.home[0] > 0.f &&
+            (marching_to_contact ||
+             (f > iso + options_.tolerance && entered > options_.tolerance))) {
+          const float c = entered + options_.contact_gap;
+          if (marching_to_contact && c <= options_.tolerance) {
+            states_[v] = TrackState::kContact;
+            break;
+          }
+          const Eigen::Vector3f gc = (home.other - home.home).tail<3>();
+          const float gc_len = gc.norm();
+          if (!(gc_len > min_gradient)) {
+            states_[v] = TrackState::kLost;
+            break;
+          }
+          prev_(v, 3) = 2.f;
+          const float length =
+              std::clamp(-options_.sigma * c / gc_len, -max_step, max_step);
+          x += length * (gc / gc_len);
+          positions_.row(v) = x.transpose();
+          continue;
+        }
+      }
+      const Eigen::Vector3f unit = g / g_len;
+      if (prev_(v, 3) == 1.f &&
+          unit.dot(prev_.row(v).head<3>().transpose()) < cos_contact) {
+        states_[v] = TrackState::kContact;
+        break;
+      }
+      prev_.row(v) << unit.x(), unit.y(), unit.z(), 1.f;
+      const float d = iso - f;
+      if (std::abs(d) < options_.tolerance) {
+        // On another part's surface: a crease between parts, smoothed
+        // like a contact.
+        states_[v] = entered > options_.tolerance ? TrackState::kCrease
+                                                  : TrackState::kConverged;
+        break;
+      }
+      float length = options_.sigma * d / g_len;  // signed step along unit
+      length = std::clamp(length, -max_step, max_step);
+      x += length * unit;
+      positions_.row(v) = x.transpose();
+    }
+  }
+  times_.projection_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::relax() {
+  const auto start = std::chrono::steady_clock::now();
+  const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
+  const int n = mesh_->vertexCount();
+  scratch_ = positions_;
+  const OneRings& rings = mesh_->rings;
+  const RelaxationWeights& relaxation = mesh_->relaxation;
+  std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
+  for (int v = 0; v < n; ++v) {
+    if (states_[v] != TrackState::kMarching ||
+        relaxation.rules[v] == RelaxationRule::kFixed)
+      continue;
+    const Eigen::Vector3f x = positions_.row(v).transpose();
+    const Eigen::Vector4f sample = sampler.sample(x, per_field.data());
+    // The surface the vertex marches to: its iso-surface, or the contact
+    // surface c = 0 while it marches to a contact.
+    float distance = sample[0] - mesh_->iso_values[v];
+    Eigen::Vector3f normal = sample.tail<3>();
+    if (prev_(v, 3) == 2.f) {
+      const HomeSamples home = homeSamples(*mesh_, v, per_field.data());
+      distance = home.other[0] - home.home[0] - mesh_->home_margin[v] +
+                 options_.contact_gap;
+      normal = (home.other - home.home).tail<3>();
+    }
+    const float normal_len = normal.norm();
+    if (!(sample[0] > 0.f) || !(normal_len > 0.f)) continue;
+    const Eigen::Vector3f unit = normal / normal_len;
+    const float t = std::abs(distance) - 1.f;
+    const float mu = std::max(0.f, 1.f - t * t * t * t);
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+      centroid += relaxation.weights[i] *
+                  positions_.row(rings.neighbours[i]).transpose();
+    Eigen::Vector3f d = centroid - x;
+    d -= d.dot(unit) * unit;
+    scratch_.row(v) = (x + mu * d).transpose();
+  }
+  positions_.swap(scratch_);
+  times_.relaxation_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::smooth() {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = mesh_->vertexCount();
+  const OneRings& rings = mesh_->rings;
+  beta_.assign(2 * static_cast<size_t>(n), 0.f);
+  for (int v = 0; v < n; ++v) {
+    beta_[2 * v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
+    beta_[2 * v + 1] = states_[v] == TrackState::kCrease ? 1.f : 0.f;
+  }
+  const float radius = options_.smoothing_radius * mesh_->diagonal;
+  const int diffusions =
+      std::max(options_.beta_diffusion, options_.crease_diffusion);
+  for (int k = 0; k < diffusions; ++k) {
+    const bool channel[2] = {k < options_.beta_diffusion,
+                             k < options_.crease_diffusion};
+    beta_scratch_ = beta_;
+    for (int v = 0; v < n; ++v) {
+      if (rings.kinds[v] == RingKind::kDuplicate) continue;
+      float count = 1.f;
+      for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+        count += mesh_->ring_lengths[i] <= radius ? 1.f : 0.f;
+      for (int c = 0; c < 2; ++c) {
+        // Sources stay at 1.
+        if (!channel[c] || (c == 0 && states_[v] == TrackState::kContact) ||
+            (c == 1 && states_[v] == TrackState::kCrease))
+          continue;
+        float sum = beta_[2 * v + c];
+        for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+          if (mesh_->ring_lengths[i] <= radius)
+            sum += beta_[2 * static_cast<size_t>(rings.neighbours[i]) + c];
+        beta_scratch_[2 * v + c] = sum / count;
+      }
+    }
+    beta_.swap(beta_scratch_);
+  }
+  const int steps = std::max(options_.smoothing_steps, options_.crease_steps);
+  for (int k = 0; k < steps; ++k) {
+    scratch_ = positions_;
+    for (int v = 0; v < n; ++v) {
+      const float b = k < options_.smoothing_steps ? beta_[2 * v] : 0.f;
+      const float c = k < options_.crease_steps ? beta_[2 * v + 1] : 0.f;
+      if (!(b > 0.f || c > 0.f) ||
+          mesh_->relaxation.rules[v] == RelaxationRule::kFixed)
+        continue;
+      const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
+      const Eigen::Vector3f x = positions_.row(v).transpose();
+      Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+      int near = 0;
+      for (uint32_t i = begin; i < end; ++i) {
+        if (!(mesh_->ring_lengths[i] <= radius)) continue;
+        centroid += positions_.row(rings.neighbours[i]).transpose();
+        ++near;
+      }
+      if (near == 0) continue;
+      centroid /= static_cast<float>(near);
+      const Eigen::Vector3f d = centroid - x;
+      Eigen::Vector3f tangential = Eigen::Vector3f::Zero();
+      if (c > 0.f && rings.kinds[v] == RingKind::kClosed) {
+        // The ring's area-weighted normal at the current positions.
+        Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+        for (uint32_t i = begin; i < end; ++i) {
+          const uint32_t j = i + 1 < end ? i + 1 : begin;
+          normal +=
+              (positions_.row(rings.neighbours[i]).transpose() - x)
+                  .cross(positions_.row(rings.neighbours[j]).transpose() - x);
+        }
+        const float length = normal.norm();
+        if (length > 0.f) {
+          normal /= length;
+          tangential = d - d.dot(normal) * normal;
+        }
+      }
+      scratch_.row(v) = (x + b * d + (1.f - b) * c * tangential).transpose();
+    }
+    positions_.swap(scratch_);
+  }
+  times_.smoothing_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::finish() {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = mesh_->vertexCount();
+  for (int v = 0; v < n; ++v) {
+    const int r = mesh_->rings.representative[v];
+    if (r != v) positions_.row(v) = positions_.row(r);
+  }
+  VertexNormalsJob job;
+  job.positions = &positions_;
+  job.triangles = &mesh_->triangles;
+  job.adjacency = &mesh_->normal_adjacency;
+  job.fallback_normals = &fallback_normals_;
+  job.out_normals = &normals_;
+  job.run();
+  times_.normals_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::run(const TransformList& skinning,
+                             const Matrix3Xf& skinned_positions,
+                             const Matrix3Xf& skinned_normals) {
+  begin(skinning, skinned_positions, skinned_normals);
+  for (int r = 0; r < options_.rounds; ++r) {
+    project(options_.projection_steps);
+    if (options_.relaxation) relax();
+  }
+  smooth();
+  finish();
+}
+
+}  // namespace isk
