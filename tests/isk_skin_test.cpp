@@ -205,13 +205,99 @@ TEST(IskSkinTest, PlyFormatWritesPlyFrames) {
   EXPECT_EQ(readFile(dir / "frames/frame_0001.ply").rfind("ply\n", 0), 0u);
 }
 
-TEST(IskSkinTest, ImplicitMethodIsNotImplementedYet) {
-  const std::vector<std::string> args = {"builtin:cylinder", "--method",
-                                         "implicit"};
+// --method implicit: base skinning, surface tracking, smoothing, normals;
+// the report adds the tracking stages, self-intersections and contacts.
+nlohmann::json runImplicit(const std::vector<std::string>& extra,
+                           const ScopedTempDir& dir) {
+  std::vector<std::string> args = {
+      "builtin:cylinder",  "--method", "implicit",
+      "--frames",          "6",        "--report",
+      dir / "report.json", "--out",    (dir.path() / "frames").string()};
+  args.insert(args.end(), extra.begin(), extra.end());
   const RunOutput run = runIskSkin(args);
-  EXPECT_EQ(run.exit_code, 2) << describe(args, run);
-  EXPECT_NE(run.output.find("not implemented yet"), std::string::npos)
-      << run.output;
+  EXPECT_EQ(run.exit_code, 0) << describe(args, run);
+  if (run.exit_code != 0) return nullptr;
+  return readReport(dir / "report.json");
+}
+
+TEST(IskSkinTest, ImplicitMethodReportsStagesSelfIntersectionsAndContacts) {
+  ScopedTempDir dir;
+  const nlohmann::json report = runImplicit({}, dir);
+  ASSERT_TRUE(report.is_object());
+  expectReportKeys(report);
+  EXPECT_EQ(report["method"], "implicit");
+  for (const char* key : {"skinning", "projection", "relaxation", "smoothing",
+                          "normals", "upload", "readback"}) {
+    ASSERT_TRUE(report["stage_ms"].contains(key)) << "stage_ms." << key;
+    EXPECT_GE(report["stage_ms"][key].get<double>(), 0) << key;
+  }
+  const nlohmann::json& quality = report["quality"];
+  ASSERT_TRUE(quality.contains("self_intersections")) << quality;
+  EXPECT_GE(quality["self_intersections"]["max"].get<int>(), 0);
+  EXPECT_GE(quality["self_intersections"]["total"].get<int>(),
+            quality["self_intersections"]["max"].get<int>());
+  ASSERT_TRUE(quality.contains("contact_vertices")) << quality;
+  EXPECT_GE(quality["contact_vertices"].get<double>(), 0);
+  // The bind pose comes back unchanged.
+  EXPECT_LT(quality["rest_pose_error"].get<double>(), 1e-5);
+  expectObjFrames(dir.path() / "frames", 6, report["vertices"].get<int>());
+  // The fields the march follows: the drift from the iso values is what
+  // tracking removes (the dqs run of the same fields shows it before).
+  ASSERT_TRUE(report.contains("implicit")) << report.dump(2);
+  ScopedTempDir dqs_dir;
+  const std::vector<std::string> dqs_args = {
+      "builtin:cylinder", "--operator",           "union", "--frames", "6",
+      "--report",         dqs_dir / "report.json"};
+  const RunOutput dqs_run = runIskSkin(dqs_args);
+  ASSERT_EQ(dqs_run.exit_code, 0) << describe(dqs_args, dqs_run);
+  const nlohmann::json dqs = readReport(dqs_dir / "report.json");
+  EXPECT_LT(report["implicit"]["iso_drift"]["mean"].get<double>(),
+            0.5 * dqs["implicit"]["iso_drift"]["mean"].get<double>())
+      << report["implicit"] << "\n"
+      << dqs["implicit"];
+  // DQS folds the cylinder's inner side through itself; tracking does not.
+  EXPECT_GT(dqs["quality"]["self_intersections"]["max"].get<int>(), 0);
+  EXPECT_LT(quality["self_intersections"]["max"].get<int>(),
+            dqs["quality"]["self_intersections"]["max"].get<int>());
+}
+
+TEST(IskSkinTest, ImplicitMethodOnReferenceMatchesOpenCl) {
+  ScopedTempDir a, b;
+  const nlohmann::json device = runImplicit({}, a);
+  const nlohmann::json reference = runImplicit({"--device", "reference"}, b);
+  ASSERT_TRUE(device.is_object() && reference.is_object());
+  EXPECT_EQ(reference["device"], "reference");
+  for (const std::string& name : frameFiles(a.path() / "frames")) {
+    const Matrix3Xf p = readObjPositions((a.path() / "frames" / name).string());
+    const Matrix3Xf q = readObjPositions((b.path() / "frames" / name).string());
+    ASSERT_EQ(p.rows(), q.rows()) << name;
+    const test::RowMismatch worst = test::largestRowDistance(p, q);
+    // 10k-unit cylinder (diagonal about 8.5): float rounding of two devices.
+    EXPECT_LT(worst.distance, 1e-3) << name << ": vertex " << worst.row;
+  }
+}
+
+TEST(IskSkinTest, TrackingOptionsAreValidatedAndChangeTheResult) {
+  ScopedTempDir dir;
+  const std::vector<std::string> bad = {"builtin:cylinder", "--method",
+                                        "implicit", "--sigma", "2"};
+  const RunOutput run = runIskSkin(bad);
+  EXPECT_NE(run.exit_code, 0) << describe(bad, run);
+  EXPECT_NE(run.output.find("--sigma"), std::string::npos) << run.output;
+  // No rounds: nothing marches, the drift stays the DQS drift.
+  ScopedTempDir none_dir;
+  const nlohmann::json none = runImplicit({"--rounds", "0"}, none_dir);
+  const nlohmann::json full = runImplicit({}, dir);
+  ASSERT_TRUE(none.is_object() && full.is_object());
+  EXPECT_GT(none["implicit"]["iso_drift"]["mean"].get<double>(),
+            2 * full["implicit"]["iso_drift"]["mean"].get<double>());
+  // A tracking option without --method implicit is a warning.
+  const std::vector<std::string> unused = {"builtin:cylinder", "--frames", "2",
+                                           "--rounds", "3"};
+  const RunOutput warned = runIskSkin(unused);
+  EXPECT_EQ(warned.exit_code, 0) << describe(unused, warned);
+  EXPECT_NE(warned.output.find("no effect"), std::string::npos)
+      << warned.output;
 }
 
 TEST(IskSkinTest, BadInputsExitNonZeroWithAMessage) {
@@ -433,13 +519,17 @@ TEST(IskSkinTest, MalformedJointOperatorIsAnError) {
       << describe(twice, run);
 }
 
-TEST(IskSkinTest, ImplicitMethodWithOperatorsIsStillNotImplemented) {
-  const std::vector<std::string> args = {"builtin:arm", "--method", "implicit",
-                                         "--operator", "blend"};
+TEST(IskSkinTest, ImplicitMethodWithTheBlendOperatorRuns) {
+  ScopedTempDir dir;
+  const std::vector<std::string> args = {
+      "builtin:arm", "--method", "implicit", "--operator",       "blend",
+      "--frames",    "4",        "--report", dir / "report.json"};
   const RunOutput run = runIskSkin(args);
-  EXPECT_EQ(run.exit_code, 2) << describe(args, run);
-  EXPECT_NE(run.output.find("not implemented yet"), std::string::npos)
-      << run.output;
+  ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+  const nlohmann::json report = readReport(dir / "report.json");
+  EXPECT_EQ(report["implicit"]["operators"].value("elbow", ""), "blend");
+  EXPECT_LT(report["quality"]["rest_pose_error"].get<double>(), 1e-5);
+  EXPECT_LT(report["implicit"]["iso_drift"]["max"].get<double>(), 1);
 }
 
 TEST(IskSkinTest, BlendOperatorReportsTheImplicitSection) {

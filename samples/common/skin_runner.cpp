@@ -15,6 +15,7 @@
 #include "isk/mesh_metrics.hpp"
 #include "isk/pose.hpp"
 #include "isk/procedural.hpp"
+#include "isk/self_intersection.hpp"
 
 namespace isk::samples {
 namespace fs = std::filesystem;
@@ -233,6 +234,61 @@ void FrameSkinner::skin(SkinningMethod method, const TransformList& skinning,
     reference_->readPositions(positions);
     reference_->readNormals(normals);
   }
+  const SkinningStageTimes& t = lastTimes();
+  stages_ = {{"upload", t.upload_ms},
+             {"skinning", t.skinning_ms},
+             {"normals", t.normals_ms},
+             {"readback", t.readback_ms}};
+}
+
+void FrameSkinner::enableImplicit(const Rig& rig,
+                                  std::shared_ptr<const ImplicitFields> fields,
+                                  const ImplicitSkinnerOptions& options) {
+  if (device_) {
+    implicit_device_ = std::make_unique<ImplicitSkinner>(
+        context_, rig, std::move(fields), options);
+  } else {
+    implicit_reference_ =
+        std::make_unique<CpuImplicitSkinner>(rig, std::move(fields), options);
+  }
+}
+
+void FrameSkinner::skinImplicit(const TransformList& skinning,
+                                Matrix3Xf& positions, Matrix3Xf& normals) {
+  if (!hasImplicit())
+    throw Error(ErrorCode::kInternal,
+                "FrameSkinner::skinImplicit before enableImplicit");
+  const ImplicitStageTimes* t = nullptr;
+  if (implicit_device_) {
+    implicit_device_->run(skinning);
+    implicit_device_->readPositions(positions);
+    implicit_device_->readNormals(normals);
+    t = &implicit_device_->lastTimes();
+  } else {
+    implicit_reference_->run(skinning);
+    implicit_reference_->readPositions(positions);
+    implicit_reference_->readNormals(normals);
+    t = &implicit_reference_->lastTimes();
+  }
+  stages_ = {{"upload", t->upload_ms},
+             {"skinning", t->skinning_ms},
+             {"projection", t->tracking.projection_ms},
+             {"relaxation", t->tracking.relaxation_ms},
+             {"smoothing", t->tracking.smoothing_ms},
+             {"normals", t->tracking.normals_ms},
+             {"readback", t->readback_ms}};
+}
+
+int FrameSkinner::lastContactCount() {
+  if (implicit_device_) return implicit_device_->contactCount();
+  if (implicit_reference_) return implicit_reference_->contactCount();
+  return 0;
+}
+
+const TrackingMesh* FrameSkinner::trackingMesh() const {
+  if (implicit_device_) return &implicit_device_->trackingMesh();
+  if (implicit_reference_) return &implicit_reference_->trackingMesh();
+  return nullptr;
 }
 
 TimeSummary summarize(std::vector<double> values) {
@@ -256,7 +312,14 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
   result.frames = static_cast<int>(options.times.size());
 
   Matrix3Xf positions, normals;
-  skinner.skin(options.method, bindPoseSkinning(skeleton), positions, normals);
+  auto skinFrame = [&](const TransformList& skinning) {
+    if (options.implicit) {
+      skinner.skinImplicit(skinning, positions, normals);
+    } else {
+      skinner.skin(options.method, skinning, positions, normals);
+    }
+  };
+  skinFrame(bindPoseSkinning(skeleton));
   const double diagonal = rig.boundingBoxDiagonal();
   const double rest_distance = maxVertexDistance(positions, mesh.positions);
   result.rest_pose_error =
@@ -269,7 +332,14 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       diagonal > 0 &&
       std::abs(result.rest_volume) > 1e-6 * diagonal * diagonal * diagonal;
 
-  std::vector<double> skinning_ms, normals_ms, upload_ms, readback_ms;
+  std::vector<std::vector<double>> stage_ms;
+  // Seam copies touch along edges without sharing an index: group them.
+  std::vector<int> vertex_groups;
+  if (options.self_intersections) {
+    vertex_groups = skinner.trackingMesh()
+                        ? skinner.trackingMesh()->rings.representative
+                        : coincidentVertexGroups(mesh.positions);
+  }
   // Ends the progress line before an error message goes out.
   struct ProgressLine {
     bool active;
@@ -283,13 +353,17 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
         skinningTransforms(skeleton, globalTransforms(skeleton, locals));
 
     const auto start = Clock::now();
-    skinner.skin(options.method, skinning, positions, normals);
+    skinFrame(skinning);
     result.frame_ms.push_back(millisecondsSince(start));
-    const SkinningStageTimes& stage = skinner.lastTimes();
-    skinning_ms.push_back(stage.skinning_ms);
-    normals_ms.push_back(stage.normals_ms);
-    upload_ms.push_back(stage.upload_ms);
-    readback_ms.push_back(stage.readback_ms);
+    const StageTimes& stages = skinner.lastStages();
+    stage_ms.resize(stages.size());
+    for (size_t s = 0; s < stages.size(); ++s)
+      stage_ms[s].push_back(stages[s].second);
+    if (options.implicit)
+      result.contact_vertices.push_back(skinner.lastContactCount());
+    if (options.self_intersections)
+      result.self_intersections.push_back(
+          countSelfIntersections(positions, mesh.triangles, &vertex_groups));
 
     if (volume_meaningful) {
       const double ratio =
@@ -314,10 +388,10 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
   }
 
   result.frame = summarize(result.frame_ms);
-  result.stage_median.skinning_ms = summarize(skinning_ms).median;
-  result.stage_median.normals_ms = summarize(normals_ms).median;
-  result.stage_median.upload_ms = summarize(upload_ms).median;
-  result.stage_median.readback_ms = summarize(readback_ms).median;
+  const StageTimes& names = skinner.lastStages();
+  for (size_t s = 0; s < names.size() && s < stage_ms.size(); ++s)
+    result.stage_median.emplace_back(names[s].first,
+                                     summarize(stage_ms[s]).median);
   return result;
 }
 

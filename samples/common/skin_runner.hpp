@@ -14,6 +14,7 @@
 #include "isk/cl/skinning.hpp"
 #include "isk/cpu_skinning.hpp"
 #include "isk/export.hpp"
+#include "isk/implicit_skinner.hpp"
 #include "isk/rig.hpp"
 #include "isk/skinning.hpp"
 #include "isk/types.hpp"
@@ -50,14 +51,33 @@ std::string frameFileName(int frame, MeshFormat format);
 void prepareOutputFolder(const std::string& dir, bool overwrite,
                          const std::string& protected_path);
 
-// Skins one rig on one device: an OpenCL device through isk::ClSkinning, or
-// the CPU reference through its twin isk::CpuSkinning.
+// Named stage times of one frame, in pipeline order.
+using StageTimes = std::vector<std::pair<std::string, double>>;
+
+// Skins one rig on one device: an OpenCL device through isk::ClSkinning (and
+// isk::ImplicitSkinner), or the CPU reference through their twins
+// isk::CpuSkinning (and isk::CpuImplicitSkinner).
 class FrameSkinner {
  public:
   // `device`: "auto" or "" (default OpenCL device), "reference" (CPU), or an
   // isk::ClContext::create selection such as "opencl:1". Uploads the rig's
   // static data; throws isk::Error.
   FrameSkinner(const Rig& rig, const std::string& device);
+
+  // Adds implicit skinning with `fields` built for this rig (shared, not
+  // copied) on the same device; skinImplicit() needs it.
+  void enableImplicit(const Rig& rig,
+                      std::shared_ptr<const ImplicitFields> fields,
+                      const ImplicitSkinnerOptions& options);
+  bool hasImplicit() const { return implicit_device_ || implicit_reference_; }
+  // Implicit skinning of one frame (base skinning, tracking, normals); fills
+  // lastStages().
+  void skinImplicit(const TransformList& skinning, Matrix3Xf& positions,
+                    Matrix3Xf& normals);
+  // Vertices stopped at a contact by the last skinImplicit().
+  int lastContactCount();
+  // The tracking mesh of the implicit skinner (its welded vertex groups).
+  const TrackingMesh* trackingMesh() const;
 
   bool isReference() const { return !device_; }
   // Null for the reference.
@@ -72,6 +92,10 @@ class FrameSkinner {
   const SkinningStageTimes& lastTimes() const {
     return device_ ? device_->lastTimes() : reference_->lastTimes();
   }
+  // The last skin()'s or skinImplicit()'s stage times: upload, skinning,
+  // normals, readback; or upload, skinning, projection, relaxation,
+  // smoothing, normals, readback.
+  const StageTimes& lastStages() const { return stages_; }
 
   // The OpenCL context (null for the reference), so that other device work
   // such as isk::ClFieldEvaluation shares its queue and buffers.
@@ -86,10 +110,18 @@ class FrameSkinner {
   std::shared_ptr<ClContext> context_;      // set for OpenCL
   std::unique_ptr<ClSkinning> device_;      // set for OpenCL
   std::unique_ptr<CpuSkinning> reference_;  // set for the reference
+  std::unique_ptr<ImplicitSkinner> implicit_device_;
+  std::unique_ptr<CpuImplicitSkinner> implicit_reference_;
+  StageTimes stages_;
 };
 
 struct RunOptions {
   SkinningMethod method = SkinningMethod::kDualQuaternion;
+  // Implicit skinning (the skinner's enableImplicit) instead of `method`.
+  bool implicit = false;
+  // Count self-intersecting triangle pairs of every frame (a BVH per frame,
+  // outside the frame timings).
+  bool self_intersections = false;
   std::vector<double> times;  // seconds, one per frame
   std::string out_dir;        // empty: no frame files
   MeshFormat format = MeshFormat::kObj;
@@ -110,7 +142,11 @@ struct RunResult {
   int frames = 0;
   std::vector<double> frame_ms;  // skinning + normals + readback, per frame
   TimeSummary frame;
-  SkinningStageTimes stage_median;
+  StageTimes stage_median;  // per stage, median over the frames
+  // Per frame, when asked: self-intersecting pairs of non-adjacent
+  // triangles; vertices stopped at a contact (implicit only).
+  std::vector<int> self_intersections;
+  std::vector<int> contact_vertices;
   double rest_volume = 0;
   // Unset when the rest volume is about 0 (an open or flat mesh), where
   // a ratio means nothing.

@@ -24,6 +24,7 @@
 #include "isk/field_composition.hpp"
 #include "isk/field_evaluation.hpp"
 #include "isk/implicit_fields.hpp"
+#include "isk/implicit_skinner.hpp"
 #include "isk/pose.hpp"
 #include "isk/procedural.hpp"
 #include "skin_runner.hpp"
@@ -33,8 +34,6 @@ namespace {
 namespace fs = std::filesystem;
 using isk::samples::FrameSkinner;
 using isk::samples::RunResult;
-
-constexpr int kNotImplementedExit = 2;
 
 struct Options {
   std::string input;
@@ -55,6 +54,10 @@ struct Options {
   double blend_theta = 0;
   bool composition_given = false;
   bool bulge_strength_given = false, blend_theta_given = false;
+
+  // Surface tracking (--method implicit); defaults are the paper's.
+  isk::SurfaceTrackingOptions tracking;
+  bool tracking_given = false;
 };
 
 constexpr double kMiB = 1024.0 * 1024.0;
@@ -154,15 +157,13 @@ void warnUnusedControllers(const Options& options,
 // corrects, and it depends on the operators.
 class IsoDriftProbe {
  public:
-  IsoDriftProbe(const isk::Rig& rig, const isk::CompositionOptions& composition,
-                FrameSkinner& skinner)
-      : rig_(rig), skinner_(skinner) {
-    isk::ImplicitFieldsOptions options;
-    options.composition = composition;
-    const auto start = std::chrono::steady_clock::now();
-    fields_ = isk::samples::buildFieldsWithProgress(
-        rig, options, "isk-skin: building fields", "isk-skin: warning: ");
-    build_ms_ = millisecondsSince(start);
+  IsoDriftProbe(const isk::Rig& rig,
+                std::shared_ptr<const isk::ImplicitFields> fields,
+                double build_ms, FrameSkinner& skinner)
+      : rig_(rig),
+        fields_(*fields),
+        keep_(std::move(fields)),
+        build_ms_(build_ms) {
     for (int v = 0; v < static_cast<int>(fields_.iso_values.size()); ++v) {
       if (fields_.iso_values[v] > 0) tracked_.push_back(v);
     }
@@ -179,16 +180,14 @@ class IsoDriftProbe {
     }
   }
 
-  // Evaluates the composed field at the skinner's last output (`positions`
-  // on the host, the same positions on the device) posed by `skinning`.
+  // Evaluates the composed field at the frame's output `positions` posed by
+  // `skinning` (on the device when there is one).
   void measure(const isk::TransformList& skinning,
                const isk::Matrix3Xf& positions) {
     if (fields_.grids.fieldCount() == 0 || tracked_.empty()) return;
     const auto start = std::chrono::steady_clock::now();
     if (device_) {
-      device_->evaluate(skinning, *skinner_.devicePositions(),
-                        static_cast<int>(positions.rows()));
-      device_->readComposed(values_);
+      device_->evaluate(skinning, positions, values_);
     } else {
       values_ = isk::evaluateComposedField(fields_.grids, skinning, positions,
                                            &fields_.composition);
@@ -254,14 +253,21 @@ class IsoDriftProbe {
 
  private:
   const isk::Rig& rig_;
-  FrameSkinner& skinner_;
-  isk::ImplicitFields fields_;
+  const isk::ImplicitFields& fields_;
+  std::shared_ptr<const isk::ImplicitFields> keep_;
   std::vector<int> tracked_;  // vertices with iso value > 0
   std::unique_ptr<isk::ClFieldEvaluation> device_;  // null: CPU reference
   isk::Matrix4Xf values_;
   std::vector<double> drift_mean_, drift_max_, field_ms_;
   double build_ms_ = 0, upload_ms_ = 0;
 };
+
+// Median of per-frame counts (0 for none).
+double medianCount(const std::vector<int>& counts) {
+  return isk::samples::summarize(
+             std::vector<double>(counts.begin(), counts.end()))
+      .median;
+}
 
 nlohmann::json makeReport(const Options& options, const isk::Rig& rig,
                           const isk::AnimationClip& clip,
@@ -290,10 +296,9 @@ nlohmann::json makeReport(const Options& options, const isk::Rig& rig,
   report["frame_ms"] = {{"median", result.frame.median},
                         {"p95", result.frame.p95},
                         {"min", result.frame.min}};
-  report["stage_ms"] = {{"skinning", result.stage_median.skinning_ms},
-                        {"normals", result.stage_median.normals_ms},
-                        {"upload", result.stage_median.upload_ms},
-                        {"readback", result.stage_median.readback_ms}};
+  nlohmann::json stages = nlohmann::json::object();
+  for (const auto& [name, ms] : result.stage_median) stages[name] = ms;
+  report["stage_ms"] = stages;
   nlohmann::json quality;
   if (result.volume_ratio_min) {
     quality["volume_ratio"] = {{"min", *result.volume_ratio_min},
@@ -306,11 +311,40 @@ nlohmann::json makeReport(const Options& options, const isk::Rig& rig,
   }
   quality["rest_volume"] = result.rest_volume;
   quality["rest_pose_error"] = result.rest_pose_error;
+  if (!result.self_intersections.empty()) {
+    const auto& counts = result.self_intersections;
+    long long total = 0;
+    for (int c : counts) total += c;
+    quality["self_intersections"] = {
+        {"max", *std::max_element(counts.begin(), counts.end())},
+        {"total", total}};
+  }
+  if (options.method == "implicit") {
+    quality["contact_vertices"] = medianCount(result.contact_vertices);
+  }
   report["quality"] = quality;
   report["out"] = options.out_dir.empty() ? nlohmann::json(nullptr)
                                           : nlohmann::json(options.out_dir);
   report["format"] = options.format;
   if (probe) report["implicit"] = probe->report();
+  if (options.method == "implicit") {
+    const isk::SurfaceTrackingOptions& t = options.tracking;
+    report["implicit"]["tracking"] = {
+        {"base_skinning", "dqs"},
+        {"rounds", t.rounds},
+        {"projection_steps", t.projection_steps},
+        {"sigma", t.sigma},
+        {"contact_angle_degrees", t.contact_angle_degrees},
+        {"tolerance", t.tolerance},
+        {"relaxation", t.relaxation},
+        {"home_contact", t.home_contact},
+        {"beta_diffusion", t.beta_diffusion},
+        {"smoothing_steps", t.smoothing_steps},
+        {"crease_steps", t.crease_steps}};
+    if (const isk::TrackingMesh* mesh = skinner.trackingMesh()) {
+      report["implicit"]["relaxation_weights"] = mesh->relaxation.describe();
+    }
+  }
   return report;
 }
 
@@ -324,9 +358,13 @@ int run(const Options& options) {
   // Operator choices are checked before anything heavy (and before the
   // "not implemented" answer, so that a bad choice still says what is wrong).
   const isk::CompositionOptions composition = parseCompositionOptions(options);
-  if (options.method == "implicit" && !options.composition_given) {
-    std::cerr << "isk-skin: --method implicit is not implemented yet\n";
-    return kNotImplementedExit;
+  if (const isk::Validation valid = options.tracking.validate(); !valid) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     "surface tracking: " + valid.reason());
+  }
+  if (options.tracking_given && options.method != "implicit") {
+    std::cerr << "isk-skin: warning: the tracking options have no effect "
+                 "without --method implicit\n";
   }
   const isk::SkinningMethod method = options.method == "lbs"
                                          ? isk::SkinningMethod::kLinearBlend
@@ -348,10 +386,6 @@ int run(const Options& options) {
       throw isk::Error(isk::ErrorCode::kInvalidArgument,
                        options.input + ": --joint-operator: " + valid.reason());
     }
-  }
-  if (options.method == "implicit") {
-    std::cerr << "isk-skin: --method implicit is not implemented yet\n";
-    return kNotImplementedExit;
   }
   warnUnusedControllers(options, composition);
 
@@ -385,9 +419,27 @@ int run(const Options& options) {
   run_options.format = format;
   run_options.progress = frames > 5;
 
+  run_options.implicit = options.method == "implicit";
+  run_options.self_intersections = true;
+
   std::unique_ptr<IsoDriftProbe> probe;
-  if (options.composition_given) {
-    probe = std::make_unique<IsoDriftProbe>(rig, composition, skinner);
+  if (options.composition_given || run_options.implicit) {
+    isk::ImplicitFieldsOptions field_options;
+    field_options.composition = composition;
+    const auto build_start = std::chrono::steady_clock::now();
+    auto fields = std::make_shared<const isk::ImplicitFields>(
+        isk::samples::buildFieldsWithProgress(rig, field_options,
+                                              "isk-skin: building fields",
+                                              "isk-skin: warning: "));
+    const double build_ms = millisecondsSince(build_start);
+    if (run_options.implicit) {
+      isk::ImplicitSkinnerOptions implicit_options;
+      implicit_options.fields = field_options;
+      implicit_options.tracking = options.tracking;
+      implicit_options.base_skinning = isk::SkinningMethod::kDualQuaternion;
+      skinner.enableImplicit(rig, fields, implicit_options);
+    }
+    probe = std::make_unique<IsoDriftProbe>(rig, fields, build_ms, skinner);
     // The frame's pose again (runFrames does not pass it on); the probe
     // runs outside the frame timings.
     run_options.on_frame = [&](int frame, const isk::Matrix3Xf& positions,
@@ -419,6 +471,15 @@ int run(const Options& options) {
     std::cerr << "n/a";
   }
   std::cerr << "; rest-pose error " << result.rest_pose_error;
+  if (!result.self_intersections.empty()) {
+    std::cerr << "; self-intersections max "
+              << *std::max_element(result.self_intersections.begin(),
+                                   result.self_intersections.end());
+  }
+  if (!result.contact_vertices.empty()) {
+    std::cerr << "; contact vertices median "
+              << medianCount(result.contact_vertices);
+  }
   if (!options.out_dir.empty()) {
     std::cerr << "; wrote " << result.files.size() << " files to "
               << options.out_dir;
@@ -510,7 +571,30 @@ int main(int argc, char** argv) {
                      "strongest blend)")
           ->check(CLI::Range(0.0, isk::kThetaUnion))
           ->capture_default_str();
+  isk::SurfaceTrackingOptions& tracking = options.tracking;
+  std::vector<CLI::Option*> tracking_options = {
+      app.add_option("--rounds", tracking.rounds,
+                     "implicit: rounds of (projection steps, relaxation)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
+      app.add_option("--sigma", tracking.sigma,
+                     "implicit: Newton step factor of eq. 4, (0, 1]")
+          ->check(CLI::Range(1e-6, 1.0))
+          ->capture_default_str(),
+      app.add_option("--contact-angle", tracking.contact_angle_degrees,
+                     "implicit: gradient jump in degrees that stops a "
+                     "vertex at a contact")
+          ->check(CLI::Range(1e-3, 180.0))
+          ->capture_default_str(),
+      app.add_option("--smoothing-steps", tracking.smoothing_steps,
+                     "implicit: Laplacian steps around contacts (eq. 7)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
+      app.add_flag("!--no-relaxation", tracking.relaxation,
+                   "implicit: no tangential relaxation (eq. 5, 6)")};
   CLI11_PARSE(app, argc, argv);
+  for (const CLI::Option* option : tracking_options)
+    options.tracking_given = options.tracking_given || option->count() > 0;
   options.bulge_strength_given = bulge_option->count() > 0;
   options.blend_theta_given = theta_option->count() > 0;
   options.composition_given =
