@@ -26,6 +26,15 @@
 #define RING_CLOSED 0
 #define MAX_PARTNERS 8
 
+// The contact by home field's data (four consecutive kernel arguments):
+// each vertex's home field (-1: none) and rest margin, each field's blend or
+// bulge partners (MAX_PARTNERS per field, -1 padded), and contact_params:
+// x 1 when the contact by home field is on (0: the paper's march only), y
+// its gap in field units.
+#define ISK_CONTACT_PARAMS                                         \
+  __global const int *home_fields, __global const float *home_margins, \
+      __global const int *partners, const float4 contact_params
+
 // The composed field at x, plus (home >= 0) the home field's sample and the
 // largest sample of the other parts' fields (neither the home field nor its
 // blend or bulge partners), as homeSamples does on the CPU.
@@ -75,18 +84,14 @@ __kernel void track_begin(const uint vertex_count,
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
 // cos(contact angle), tolerance (field units), largest move (model units);
-// min_gradient: smallest |grad f| (model units); contact_params: x 1 for the
-// contact by home field (0: the paper's march only), y its gap (field
-// units). prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
+// min_gradient: smallest |grad f| (model units); then ISK_CONTACT_PARAMS.
+// prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
 __kernel void track_project(const uint vertex_count, __global float* positions,
                             __global const float* iso_values,
                             __global uchar* states,
                             __global float4* prev_gradients, const int steps,
                             const float4 step_params, const float min_gradient,
-                            __global const int* home_fields,
-                            __global const float* home_margins,
-                            __global const int* partners,
-                            const float4 contact_params, ISK_FIELD_PARAMS,
+                            ISK_CONTACT_PARAMS, ISK_FIELD_PARAMS,
                             ISK_COMPOSITION_PARAMS) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
@@ -170,10 +175,7 @@ __kernel void track_relax(const uint vertex_count,
                           __global const uint* ring_offsets,
                           __global const int* ring_neighbours,
                           __global const float* ring_weights,
-                          __global const int* home_fields,
-                          __global const float* home_margins,
-                          __global const int* partners,
-                          const float4 contact_params, ISK_FIELD_PARAMS,
+                          ISK_CONTACT_PARAMS, ISK_FIELD_PARAMS,
                           ISK_COMPOSITION_PARAMS) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;

@@ -22,29 +22,11 @@
 namespace isk {
 namespace {
 
+using test::bendAt;
+
 using test::rigNamed;
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Skinning transforms that bend `rig` at `joint` by `degrees` about `axis`
-// through the joint's bind position: the joint and everything below it
-// turn rigidly.
-TransformList bendAt(const Rig& rig, int joint, double degrees,
-                     const Eigen::Vector3f& axis = Eigen::Vector3f::UnitZ()) {
-  const Skeleton& skeleton = rig.skeleton;
-  const Eigen::Vector3f pivot = skeleton.bindGlobals()[joint].translation();
-  const Eigen::Affine3f turn =
-      Eigen::Translation3f(pivot) *
-      Eigen::AngleAxisf(static_cast<float>(degrees * kPi / 180), axis) *
-      Eigen::Translation3f(-pivot);
-  TransformList skinning(skeleton.jointCount(), Eigen::Affine3f::Identity());
-  for (int j = 0; j < skeleton.jointCount(); ++j) {
-    int a = j;
-    while (a >= 0 && a != joint) a = skeleton.joints[a].parent;
-    if (a == joint) skinning[j] = turn;
-  }
-  return skinning;
-}
 
 ImplicitFields fieldsWith(const Rig& rig, CompositionOptions composition) {
   ImplicitFieldsOptions options;

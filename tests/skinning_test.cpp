@@ -20,6 +20,8 @@
 namespace isk {
 namespace {
 
+using test::clipPoses;
+
 constexpr SkinningMethod kMethods[] = {SkinningMethod::kLinearBlend,
                                        SkinningMethod::kDualQuaternion};
 
@@ -43,19 +45,6 @@ Frame skinOnCpu(const Rig& rig, SkinningMethod method,
   CpuSkinning reference(rig.mesh, rig.weights, rig.skeleton.jointCount());
   reference.run(method, pose, recompute_normals);
   return {reference.positions(), reference.normals()};
-}
-
-std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
-  std::vector<TransformList> poses;
-  const AnimationClip clip =
-      rig.clips.empty() ? makeBendClip(rig.skeleton, 1.5f) : rig.clips.front();
-  for (int f = 0; f < frames; ++f) {
-    const double t = clip.start + clip.duration * f / std::max(frames - 1, 1);
-    poses.push_back(skinningTransforms(
-        rig.skeleton,
-        globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t))));
-  }
-  return poses;
 }
 
 // Runs both paths over the clip and compares every frame, both methods,

@@ -26,39 +26,8 @@
 namespace isk {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-// The skinning transforms that turn `joint` and its descendants by
-// `degrees` about `axis` through the joint's bind position.
-TransformList bendAt(const Rig& rig, int joint, double degrees,
-                     const Eigen::Vector3f& axis = Eigen::Vector3f::UnitZ()) {
-  const Skeleton& skeleton = rig.skeleton;
-  const Eigen::Vector3f pivot = skeleton.bindGlobals()[joint].translation();
-  const Eigen::Affine3f turn =
-      Eigen::Translation3f(pivot) *
-      Eigen::AngleAxisf(static_cast<float>(degrees * kPi / 180), axis) *
-      Eigen::Translation3f(-pivot);
-  TransformList skinning(skeleton.jointCount(), Eigen::Affine3f::Identity());
-  for (int j = 0; j < skeleton.jointCount(); ++j) {
-    int a = j;
-    while (a >= 0 && a != joint) a = skeleton.joints[a].parent;
-    if (a == joint) skinning[j] = turn;
-  }
-  return skinning;
-}
-
-std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
-  std::vector<TransformList> poses;
-  const AnimationClip clip =
-      rig.clips.empty() ? makeBendClip(rig.skeleton, 1.5f) : rig.clips.front();
-  for (int f = 0; f < frames; ++f) {
-    const double t = clip.start + clip.duration * f / std::max(frames - 1, 1);
-    poses.push_back(skinningTransforms(
-        rig.skeleton,
-        globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t))));
-  }
-  return poses;
-}
+using test::bendAt;
+using test::clipPoses;
 
 std::shared_ptr<const ImplicitFields> sharedFields(const std::string& name) {
   // The cached fields of test_support, shared without a copy.

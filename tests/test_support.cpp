@@ -12,7 +12,9 @@
 #include <sstream>
 
 #include "data_folder.hpp"
+#include "isk/animation.hpp"
 #include "isk/import.hpp"
+#include "isk/pose.hpp"
 #include "isk/procedural.hpp"
 
 namespace isk::test {
@@ -226,6 +228,37 @@ double number(const std::string& cell) {
   char* end = nullptr;
   const double value = std::strtod(cell.c_str(), &end);
   return (cell.empty() || *end != '\0') ? std::nan("") : value;
+}
+
+TransformList bendAt(const Rig& rig, int joint, double degrees,
+                     const Eigen::Vector3f& axis) {
+  const Skeleton& skeleton = rig.skeleton;
+  const Eigen::Vector3f pivot = skeleton.bindGlobals()[joint].translation();
+  const Eigen::Affine3f turn =
+      Eigen::Translation3f(pivot) *
+      Eigen::AngleAxisf(
+          static_cast<float>(degrees * 3.14159265358979323846 / 180), axis) *
+      Eigen::Translation3f(-pivot);
+  TransformList skinning(skeleton.jointCount(), Eigen::Affine3f::Identity());
+  for (int j = 0; j < skeleton.jointCount(); ++j) {
+    int a = j;
+    while (a >= 0 && a != joint) a = skeleton.joints[a].parent;
+    if (a == joint) skinning[j] = turn;
+  }
+  return skinning;
+}
+
+std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
+  std::vector<TransformList> poses;
+  const AnimationClip clip =
+      rig.clips.empty() ? makeBendClip(rig.skeleton, 1.5f) : rig.clips.front();
+  for (int f = 0; f < frames; ++f) {
+    const double t = clip.start + clip.duration * f / std::max(frames - 1, 1);
+    poses.push_back(skinningTransforms(
+        rig.skeleton,
+        globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t))));
+  }
+  return poses;
 }
 
 }  // namespace isk::test

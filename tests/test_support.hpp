@@ -105,4 +105,14 @@ std::vector<std::vector<std::string>> tableRows(const std::string& text,
 // The number a cell spells; NaN when it is not entirely a number.
 double number(const std::string& cell);
 
+// Skinning transforms that bend `rig` at `joint` by `degrees` about `axis`
+// through the joint's bind position: the joint and everything below it
+// turn rigidly.
+TransformList bendAt(const Rig& rig, int joint, double degrees,
+                     const Eigen::Vector3f& axis = Eigen::Vector3f::UnitZ());
+
+// `frames` skinning poses spread over the rig's first clip, from its start
+// to its end (a 1.5 rad bend of every joint when the rig has none).
+std::vector<TransformList> clipPoses(const Rig& rig, int frames);
+
 }  // namespace isk::test

@@ -355,8 +355,7 @@ int run(const Options& options) {
     }
     return 0;
   }
-  // Operator choices are checked before anything heavy (and before the
-  // "not implemented" answer, so that a bad choice still says what is wrong).
+  // Operator and tracking choices are checked before anything heavy.
   const isk::CompositionOptions composition = parseCompositionOptions(options);
   if (const isk::Validation valid = options.tracking.validate(); !valid) {
     throw isk::Error(isk::ErrorCode::kInvalidArgument,

@@ -100,21 +100,7 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
   }
 }
 
-void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage) {
-  const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
-  cl::Event event;
-  if (context_->profilingEnabled()) {
-    context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
-                                           cl::NullRange, nullptr, &event);
-    events_.emplace_back(stage, event);
-    return;
-  }
-  // Without profiling, each launch is waited for and timed on the host.
-  const auto start = std::chrono::steady_clock::now();
-  context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
-                                         cl::NullRange, nullptr, &event);
-  event.wait();
-  const double ms = detail::millisecondsSince(start);
+void ClSurfaceTracking::addTime(Stage stage, double ms) {
   switch (stage) {
     case kProjection:
       times_.projection_ms += ms;
@@ -131,25 +117,35 @@ void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage) {
   }
 }
 
-void ClSurfaceTracking::collectTimes() {
-  for (auto& [stage, event] : events_) {
-    const double ms = eventMilliseconds(event);
-    switch (stage) {
-      case kProjection:
-        times_.projection_ms += ms;
-        break;
-      case kRelaxation:
-        times_.relaxation_ms += ms;
-        break;
-      case kSmoothing:
-        times_.smoothing_ms += ms;
-        break;
-      case kNormals:
-        times_.normals_ms += ms;
-        break;
-    }
+void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage) {
+  const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
+  cl::Event event;
+  if (context_->profilingEnabled()) {
+    context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
+                                           cl::NullRange, nullptr, &event);
+    events_.emplace_back(stage, event);
+    return;
   }
+  // Without profiling, each launch is waited for and timed on the host.
+  const auto start = std::chrono::steady_clock::now();
+  context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
+                                         cl::NullRange, nullptr, &event);
+  event.wait();
+  addTime(stage, detail::millisecondsSince(start));
+}
+
+void ClSurfaceTracking::collectTimes() {
+  for (auto& [stage, event] : events_) addTime(stage, eventMilliseconds(event));
   events_.clear();
+}
+
+void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
+                                       cl_uint first_index) const {
+  kernel.setArg(first_index, home_fields_);
+  kernel.setArg(first_index + 1, home_margins_);
+  kernel.setArg(first_index + 2, partners_);
+  kernel.setArg(first_index + 3, cl_float4{{options_.home_contact ? 1.f : 0.f,
+                                            options_.contact_gap, 0.f, 0.f}});
 }
 
 void ClSurfaceTracking::begin(const TransformList& skinning,
@@ -199,11 +195,7 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(6, cl_float4{{options_.sigma, cos_contact,
                                   options_.tolerance, max_step}});
     project_.setArg(7, min_gradient);
-    project_.setArg(8, home_fields_);
-    project_.setArg(9, home_margins_);
-    project_.setArg(10, partners_);
-    project_.setArg(11, cl_float4{{options_.home_contact ? 1.f : 0.f,
-                                   options_.contact_gap, 0.f, 0.f}});
+    setContactArgs(project_, 8);
     fields_->setFieldArgs(project_, 12);
     fields_->setCompositionArgs(project_, 16);
     launch(project_, kProjection);
@@ -225,11 +217,7 @@ void ClSurfaceTracking::relax() {
     relax_.setArg(7, ring_offsets_);
     relax_.setArg(8, ring_neighbours_);
     relax_.setArg(9, ring_weights_);
-    relax_.setArg(10, home_fields_);
-    relax_.setArg(11, home_margins_);
-    relax_.setArg(12, partners_);
-    relax_.setArg(13, cl_float4{{options_.home_contact ? 1.f : 0.f,
-                                 options_.contact_gap, 0.f, 0.f}});
+    setContactArgs(relax_, 10);
     fields_->setFieldArgs(relax_, 14);
     fields_->setCompositionArgs(relax_, 18);
     launch(relax_, kRelaxation);

@@ -75,7 +75,10 @@ class ClSurfaceTracking {
  private:
   enum Stage { kProjection, kRelaxation, kSmoothing, kNormals };
   void launch(cl::Kernel& kernel, Stage stage);
+  void addTime(Stage stage, double ms);
   void collectTimes();
+  // Binds kernels/tracking.cl's ISK_CONTACT_PARAMS from first_index on.
+  void setContactArgs(cl::Kernel& kernel, cl_uint first_index) const;
   void readFloats(const cl::Buffer& buffer, void* out, size_t bytes,
                   const char* what);
 
