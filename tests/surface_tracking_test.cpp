@@ -355,7 +355,8 @@ TEST(SurfaceTracking, SweepIsCoherentInTime) {
 // Compares positions, states and previous gradients of the two backends
 // after each stage, both starting every stage from the reference's state.
 void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
-                 const TransformList& pose) {
+                 const TransformList& pose,
+                 FieldStorage storage = FieldStorage::kAuto) {
   const float diagonal = rig.boundingBoxDiagonal();
   const auto context = test::sharedContext();
   const float tolerance = stageTolerance(*context) * diagonal;
@@ -368,7 +369,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
 
   CpuSurfaceTracking cpu(f->grids, &f->composition, mesh);
   ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
-                           FieldStorage::kAuto, &f->composition);
+                           storage, &f->composition);
   ClSurfaceTracking cl(fields, mesh);
   cpu.begin(pose, dqs.positions(), dqs.normals());
   cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
@@ -446,6 +447,33 @@ TEST(ClSurfaceTracking, StagesMatchTheReferenceOnProceduralRigs) {
   SCOPED_TRACE("10k cylinder at 135 degrees");
   const BentCylinder& c = bentCylinder();
   checkStages(c.rig, c.fields, bendAt(c.rig, c.joint, 135));
+}
+
+TEST(ClSurfaceTracking, BothFieldStoragesMatchTheReference) {
+  // The kernels compile for both storages (images on GPUs, buffers on CPU
+  // devices) and give the same stages; PoCL samples images in float.
+  const BentCylinder& c = bentCylinder();
+  for (const FieldStorage storage :
+       {FieldStorage::kImage, FieldStorage::kBuffer}) {
+    SCOPED_TRACE(fieldStorageName(storage));
+    checkStages(c.rig, c.fields, bendAt(c.rig, c.joint, 100), storage);
+    const Rig& arm = test::rigNamed("arm");
+    ImplicitSkinnerOptions options;
+    options.storage = storage;
+    ImplicitSkinner skinner(test::sharedContext(), arm, sharedFields("arm"),
+                            options);
+    EXPECT_TRUE(skinner.fieldEvaluation().storage() == storage ||
+                !skinner.fieldEvaluation().storageReason().empty());
+    CpuImplicitSkinner reference(arm, sharedFields("arm"));
+    const TransformList pose = clipPoses(arm, 3).back();
+    skinner.run(pose);
+    reference.run(pose);
+    Matrix3Xf positions;
+    skinner.readPositions(positions);
+    EXPECT_LT(
+        test::largestRowDistance(positions, reference.positions()).distance,
+        0.02f * arm.boundingBoxDiagonal());
+  }
 }
 
 TEST(ClSurfaceTracking, StagesMatchTheReferenceOnAssets) {
