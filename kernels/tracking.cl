@@ -27,8 +27,9 @@
 #define MAX_PARTNERS 8
 
 // The contact by home field's data (four consecutive kernel arguments):
-// each vertex's home field (-1: none) and rest margin, each field's blend or
-// bulge partners (MAX_PARTNERS per field, -1 padded), and contact_params:
+// each vertex's home field (-1: none) and rest margin, each field's partners
+// at this pose (activePartners: blend pairs turned by less than 90 degrees;
+// MAX_PARTNERS per field, -1 padded), and contact_params:
 // x 1 when the contact by home field is on (0: the paper's march only), y
 // its gap in field units.
 #define ISK_CONTACT_PARAMS                                         \
@@ -37,7 +38,7 @@
 
 // The composed field at x, plus (home >= 0) the home field's sample and the
 // largest sample of the other parts' fields (neither the home field nor its
-// blend or bulge partners), as homeSamples does on the CPU.
+// partners), as homeSamples does on the CPU.
 float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                        const float3 x, const int home,
                        __global const int* partners, float4* home_out,

@@ -14,6 +14,7 @@
 #include <iostream>
 #include <memory>
 
+#include "isk/composition_operator.hpp"
 #include "isk/cpu_skinning.hpp"
 #include "isk/error.hpp"
 #include "isk/implicit_skinner.hpp"
@@ -278,6 +279,68 @@ TEST(SurfaceTracking, HomeContactKeepsDeepFoldsFromCrossing) {
             << crossing_without << ", with contact by home field "
             << crossing_with << "\n";
   EXPECT_GT(crossing_without, 10 * std::max(crossing_with, 1));
+}
+
+TEST(SurfaceTracking, BlendPartnersAreOtherPartsFromNinetyDegrees) {
+  // The blend shapes its joint's fold below 90 degrees (no contact between
+  // its two fields); from 90 degrees on it is a union and they meet in
+  // contact. Bulge pairs are never partners.
+  const BentCylinder& c = bentCylinder();
+  for (const CompositionOperator op :
+       {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
+    SCOPED_TRACE(compositionOperatorName(op));
+    ImplicitFieldsOptions options;
+    options.composition.default_operator = op;
+    const ImplicitFields fields = buildImplicitFields(c.rig, options);
+    const TrackingMesh mesh = TrackingMesh::build(c.rig.mesh, fields);
+    ASSERT_EQ(mesh.partner_pairs.size(), 1u);
+    for (const double degrees : {0.0, 45.0, 89.0, 91.0, 135.0}) {
+      const std::vector<int> partners =
+          activePartners(mesh, bendAt(c.rig, c.joint, degrees));
+      ASSERT_EQ(partners.size(), static_cast<size_t>(mesh.field_count) *
+                                     TrackingMesh::kMaxPartners);
+      const bool expected = op == CompositionOperator::kBlend && degrees < 90;
+      EXPECT_EQ(partners[0] >= 0, expected) << degrees << " degrees";
+    }
+  }
+}
+
+TEST(SurfaceTracking, BlendAndBulgeFoldsDoNotCross) {
+  const BentCylinder& c = bentCylinder();
+  const Mesh& mesh = c.rig.mesh;
+  const TransformList deep = bendAt(c.rig, c.joint, 135);
+  const int dqs = countSelfIntersections(
+      geometric(c.rig, SkinningMethod::kDualQuaternion, deep), mesh.triangles);
+  const double rest = enclosedVolume(mesh.positions, mesh.triangles);
+  for (const CompositionOperator op :
+       {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
+    SCOPED_TRACE(compositionOperatorName(op));
+    ImplicitSkinnerOptions options;
+    options.fields.composition.default_operator = op;
+    ImplicitSkinner skinner(test::sharedContext(), c.rig, options);
+    Matrix3Xf positions;
+    skinner.run(deep);
+    skinner.readPositions(positions);
+    const int crossing = countSelfIntersections(positions, mesh.triangles);
+    std::cout << "[ bend 135 deg, " << compositionOperatorName(op)
+              << " ] self-intersecting pairs " << crossing << " (DQS " << dqs
+              << "), volume / rest "
+              << enclosedVolume(positions, mesh.triangles) / rest << "\n";
+    EXPECT_LE(crossing, dqs / 100);
+  }
+  // At 45 degrees the blend fills the union's inner crease: more volume.
+  const TransformList mild = bendAt(c.rig, c.joint, 45);
+  ImplicitSkinnerOptions blend;
+  blend.fields.composition.default_operator = CompositionOperator::kBlend;
+  ImplicitSkinner blended(test::sharedContext(), c.rig, blend);
+  ImplicitSkinner united(test::sharedContext(), c.rig, c.fields);
+  Matrix3Xf a, b;
+  blended.run(mild);
+  blended.readPositions(a);
+  united.run(mild);
+  united.readPositions(b);
+  EXPECT_GT(enclosedVolume(a, mesh.triangles),
+            enclosedVolume(b, mesh.triangles) + 0.005 * rest);
 }
 
 TEST(SurfaceTracking, RigidVerticesStopAtTheirFirstStep) {

@@ -62,14 +62,15 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
     throw Error(ErrorCode::kInvalidArgument, "ImplicitSkinner: no context");
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
   rig.validate().throwIfFailed(rig.source);
-  tracking_mesh_ = TrackingMesh::build(rig.mesh, *fields_);
+  tracking_mesh_ = std::make_unique<const TrackingMesh>(
+      TrackingMesh::build(rig.mesh, *fields_));
   const int joints = rig.skeleton.jointCount();
   skinning_ =
       std::make_unique<ClSkinning>(context_, rig.mesh, rig.weights, joints);
   field_evaluation_ = std::make_unique<ClFieldEvaluation>(
       context_, fields_->grids, joints, options.storage, &fields_->composition);
   tracking_ = std::make_unique<ClSurfaceTracking>(
-      *field_evaluation_, tracking_mesh_, options.tracking);
+      *field_evaluation_, *tracking_mesh_, options.tracking);
 }
 
 void ImplicitSkinner::run(const TransformList& skinning) {
@@ -118,11 +119,12 @@ CpuImplicitSkinner::CpuImplicitSkinner(
     : options_(options), fields_(checkedFields(rig, std::move(fields))) {
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
   rig.validate().throwIfFailed(rig.source);
-  tracking_mesh_ = TrackingMesh::build(rig.mesh, *fields_);
+  tracking_mesh_ = std::make_unique<const TrackingMesh>(
+      TrackingMesh::build(rig.mesh, *fields_));
   skinning_ = std::make_unique<CpuSkinning>(rig.mesh, rig.weights,
                                             rig.skeleton.jointCount());
   tracking_ = std::make_unique<CpuSurfaceTracking>(
-      fields_->grids, &fields_->composition, tracking_mesh_, options.tracking);
+      fields_->grids, &fields_->composition, *tracking_mesh_, options.tracking);
 }
 
 void CpuImplicitSkinner::run(const TransformList& skinning) {

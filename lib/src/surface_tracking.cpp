@@ -144,25 +144,18 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
   out.normal_adjacency.offsets[vertex_count] =
       static_cast<uint32_t>(out.normal_adjacency.triangles.size());
 
-  // Home fields, partners and the rest margins.
+  // Home fields, partner pairs and the rest margins.
   const int field_count = fields.grids.fieldCount();
-  out.field_partners.assign(static_cast<size_t>(field_count) * kMaxPartners,
-                            -1);
-  auto addPartner = [&](int field, int partner) {
-    if (field < 0 || field >= field_count) return;
-    int* row = &out.field_partners[static_cast<size_t>(field) * kMaxPartners];
-    for (int k = 0; k < kMaxPartners; ++k) {
-      if (row[k] == partner) return;
-      if (row[k] < 0) {
-        row[k] = partner;
-        return;
-      }
-    }
-  };
+  out.field_count = field_count;
   for (const int k : fields.composition.blended_pairs) {
     const FieldPair& pair = fields.composition.pairs.at(k);
-    addPartner(pair.field_a, pair.field_b);
-    addPartner(pair.field_b, pair.field_a);
+    PartnerPair partner;
+    partner.field_a = pair.field_a;
+    partner.field_b = pair.field_b;
+    partner.joint_a = fields.grids.grids.at(pair.field_a).joint;
+    partner.joint_b = fields.grids.grids.at(pair.field_b).joint;
+    partner.blend = pair.op == CompositionOperator::kBlend;
+    out.partner_pairs.push_back(partner);
   }
   out.home_field.assign(vertex_count, -1);
   out.home_margin.assign(vertex_count, 0.f);
@@ -185,28 +178,55 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
     for (int v = 0; v < vertex_count; ++v) {
       if (out.home_field[v] < 0) continue;
       sampler.sample(mesh.positions.row(v).transpose(), per_field.data());
-      const HomeSamples home = homeSamples(out, v, per_field.data());
+      const HomeSamples home = homeSamples(out, nullptr, v, per_field.data());
       out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
     }
   }
   return out;
 }
 
-HomeSamples homeSamples(const TrackingMesh& mesh, int vertex,
-                        const Eigen::Vector4f* per_field) {
+std::vector<int> activePartners(const TrackingMesh& mesh,
+                                const TransformList& skinning) {
+  constexpr int kMax = TrackingMesh::kMaxPartners;
+  std::vector<int> partners(static_cast<size_t>(mesh.field_count) * kMax, -1);
+  auto add = [&](int field, int partner) {
+    int* row = &partners[static_cast<size_t>(field) * kMax];
+    for (int k = 0; k < kMax; ++k) {
+      if (row[k] < 0 || row[k] == partner) {
+        row[k] = partner;
+        return;
+      }
+    }
+  };
+  for (const TrackingMesh::PartnerPair& pair : mesh.partner_pairs) {
+    if (!pair.blend) continue;
+    // The joint's rotation from its bind pose, as pairJointAngles has it.
+    const Eigen::Quaternionf a(skinning.at(pair.joint_a).rotation());
+    const Eigen::Quaternionf b(skinning.at(pair.joint_b).rotation());
+    const Eigen::Quaternionf relative = a.conjugate() * b;
+    const float angle =
+        2.f * std::atan2(relative.vec().norm(), std::abs(relative.w()));
+    if (!(angle < static_cast<float>(M_PI) / 2)) continue;
+    add(pair.field_a, pair.field_b);
+    add(pair.field_b, pair.field_a);
+  }
+  return partners;
+}
+
+HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
+                        int vertex, const Eigen::Vector4f* per_field) {
   HomeSamples out;
   const int home = mesh.home_field[vertex];
   if (home < 0) return out;
   out.home = per_field[home];
-  const int field_count =
-      static_cast<int>(mesh.field_partners.size()) / TrackingMesh::kMaxPartners;
-  const int* partners = &mesh.field_partners[static_cast<size_t>(home) *
-                                             TrackingMesh::kMaxPartners];
-  for (int i = 0; i < field_count; ++i) {
+  const int* row = partners ? partners + static_cast<size_t>(home) *
+                                             TrackingMesh::kMaxPartners
+                            : nullptr;
+  for (int i = 0; i < mesh.field_count; ++i) {
     if (i == home) continue;
     bool partner = false;
-    for (int k = 0; k < TrackingMesh::kMaxPartners; ++k)
-      partner = partner || partners[k] == i;
+    for (int k = 0; row && k < TrackingMesh::kMaxPartners; ++k)
+      partner = partner || row[k] == i;
     if (partner) continue;
     if (per_field[i][0] > out.other[0]) out.other = per_field[i];
   }
@@ -275,6 +295,7 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
                       std::to_string(skinning.size()) +
                       " transforms were given");
   skinning_ = skinning;
+  partners_ = activePartners(*mesh_, skinning);
   positions_ = skinned_positions;
   fallback_normals_ = skinned_normals;
   states_.resize(n);
@@ -327,7 +348,8 @@ void CpuSurfaceTracking::project(int steps) {
       const float iso = mesh_->iso_values[v];
       float entered = 0.f;  // how far another part's field exceeds home
       if (options_.home_contact && mesh_->home_field[v] >= 0) {
-        const HomeSamples home = homeSamples(*mesh_, v, per_field.data());
+        const HomeSamples home =
+            homeSamples(*mesh_, partners_.data(), v, per_field.data());
         entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
         bool marching_to_contact = prev_(v, 3) == 2.f;
         // Out of the other part's grip (left through the surface): back
@@ -401,7 +423,8 @@ void CpuSurfaceTracking::relax() {
     float distance = sample[0] - mesh_->iso_values[v];
     Eigen::Vector3f normal = sample.tail<3>();
     if (prev_(v, 3) == 2.f) {
-      const HomeSamples home = homeSamples(*mesh_, v, per_field.data());
+      const HomeSamples home =
+          homeSamples(*mesh_, partners_.data(), v, per_field.data());
       distance = home.other[0] - home.home[0] - mesh_->home_margin[v] +
                  options_.contact_gap;
       normal = (home.other - home.home).tail<3>();

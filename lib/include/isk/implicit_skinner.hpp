@@ -90,19 +90,20 @@ class ImplicitSkinner {
 
   const ImplicitStageTimes& lastTimes() const { return times_; }
   const ImplicitFields& fields() const { return *fields_; }
-  const TrackingMesh& trackingMesh() const { return tracking_mesh_; }
+  const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
   ClSkinning& skinning() { return *skinning_; }
   ClFieldEvaluation& fieldEvaluation() { return *field_evaluation_; }
   ClSurfaceTracking& tracking() { return *tracking_; }
   const ImplicitSkinnerOptions& options() const { return options_; }
   ClContext& context() { return *context_; }
-  int vertexCount() const { return tracking_mesh_.vertexCount(); }
+  int vertexCount() const { return tracking_mesh_->vertexCount(); }
 
  private:
   std::shared_ptr<ClContext> context_;
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
-  TrackingMesh tracking_mesh_;
+  // Held by pointer: the tracking keeps a reference (moves stay valid).
+  std::unique_ptr<const TrackingMesh> tracking_mesh_;
   std::unique_ptr<ClSkinning> skinning_;
   std::unique_ptr<ClFieldEvaluation> field_evaluation_;
   std::unique_ptr<ClSurfaceTracking> tracking_;
@@ -127,15 +128,15 @@ class CpuImplicitSkinner {
 
   const ImplicitStageTimes& lastTimes() const { return times_; }
   const ImplicitFields& fields() const { return *fields_; }
-  const TrackingMesh& trackingMesh() const { return tracking_mesh_; }
+  const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
   CpuSkinning& skinning() { return *skinning_; }
   CpuSurfaceTracking& tracking() { return *tracking_; }
-  int vertexCount() const { return tracking_mesh_.vertexCount(); }
+  int vertexCount() const { return tracking_mesh_->vertexCount(); }
 
  private:
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
-  TrackingMesh tracking_mesh_;
+  std::unique_ptr<const TrackingMesh> tracking_mesh_;
   std::unique_ptr<CpuSkinning> skinning_;
   std::unique_ptr<CpuSurfaceTracking> tracking_;
   ImplicitStageTimes times_;

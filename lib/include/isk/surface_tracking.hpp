@@ -41,8 +41,11 @@
 // side of the other part when skinning put it past that part's bone (deep
 // folds, Figure 14(d)), and piles both parts' vertices on one surface at a
 // crease; contact_gap (field units) leaves the two parts' sheets a hair
-// apart instead of crossing. Fields joined to the home field by a blend or
-// bulge pair are not "other" parts: there the operator shapes the fold.
+// apart instead of crossing. A field joined to the home field by a blend
+// pair whose joint is turned by less than 90 degrees from its bind pose is
+// not an "other" part: there the blend shapes the fold (a fillet, no
+// contact); from 90 degrees on the blend is a union and the parts meet in
+// contact. Bulge pairs keep the max's contact crease: always other parts.
 // A vertex that converges onto another part's surface beyond its rest
 // margin ends in a crease between parts (a concave union edge, where the
 // march piles vertices from both sides): it is marked kCrease and smoothed
@@ -119,17 +122,26 @@ const char* trackStateName(TrackState state);
 
 // The static per-vertex data of tracking, built once per character.
 struct TrackingMesh {
-  // Fields joined to a field by blend or bulge pairs, per field (#fields by
-  // kMaxPartners, -1 padded; more partners than that are treated as other
-  // parts).
+  // Partners per field of activePartners (more than that are treated as
+  // other parts).
   static constexpr int kMaxPartners = 8;
+
+  // A blend or bulge pair of the composition, for activePartners.
+  struct PartnerPair {
+    int field_a = -1, field_b = -1;
+    int joint_a = -1, joint_b = -1;
+    bool blend = false;
+  };
 
   OneRings rings;
   RelaxationWeights relaxation;
-  std::vector<float> iso_values;    // #V, 0: untracked
-  std::vector<int> home_field;      // #V: field of the vertex's bone, -1
-  std::vector<float> home_margin;   // #V: max(0, o - h) at the bind pose
-  std::vector<int> field_partners;  // #fields * kMaxPartners
+  std::vector<float> iso_values;  // #V, 0: untracked
+  std::vector<int> home_field;    // #V: field of the vertex's bone, -1
+  // #V: max(0, o - h) at the bind pose, o the largest other field (all of
+  // them: partners may become other parts when their joint turns).
+  std::vector<float> home_margin;
+  std::vector<PartnerPair> partner_pairs;
+  int field_count = 0;
   // Rest length of each one-ring edge, aligned with rings.neighbours.
   std::vector<float> ring_lengths;
   TriangleMatrix triangles;  // #F by 3
@@ -148,15 +160,23 @@ struct TrackingMesh {
   static TrackingMesh build(const Mesh& mesh, const ImplicitFields& fields);
 };
 
+// Per field (#fields by kMaxPartners, -1 padded) the fields that are not
+// other parts for the contact by home field at the pose `skinning`
+// (#joints): those joined to it by a blend pair whose joint is turned by
+// less than 90 degrees from its bind pose (pairJointAngles).
+std::vector<int> activePartners(const TrackingMesh& mesh,
+                                const TransformList& skinning);
+
 // A vertex's home field sample and the largest sample of the other parts'
-// fields (not the home field, not its blend or bulge partners), from the
-// #fields samples at a point (value, gradient; zero when none).
+// fields (not the home field, not its partners in `partners`, an
+// activePartners list; null: none), from the #fields samples at a point
+// (value, gradient; zero when none).
 struct HomeSamples {
   Eigen::Vector4f home = Eigen::Vector4f::Zero();
   Eigen::Vector4f other = Eigen::Vector4f::Zero();
 };
-HomeSamples homeSamples(const TrackingMesh& mesh, int vertex,
-                        const Eigen::Vector4f* per_field);
+HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
+                        int vertex, const Eigen::Vector4f* per_field);
 
 // One frame's per-vertex results and counts.
 struct TrackingCounts {
@@ -224,7 +244,8 @@ class CpuSurfaceTracking {
   TransformList skinning_;
   Matrix3Xf positions_, scratch_, fallback_normals_, normals_;
   std::vector<TrackState> states_;
-  Matrix4Xf prev_;  // previous unit gradient, w = 1 when set
+  std::vector<int> partners_;  // activePartners of the frame's pose
+  Matrix4Xf prev_;             // previous unit gradient, w = 1 when set
   std::vector<float> beta_, beta_scratch_;
   TrackingStageTimes times_;
 };

@@ -40,6 +40,7 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     : fields_(&fields),
       context_(fields.sharedContext()),
       options_(options),
+      mesh_(&mesh),
       vertex_count_(mesh.vertexCount()),
       diagonal_(mesh.diagonal) {
   options.validate().throwIfFailed("SurfaceTrackingOptions");
@@ -70,7 +71,11 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     rules_ = uploadReadOnly(ctx, rules, &bytes_);
     home_fields_ = uploadReadOnly(ctx, mesh.home_field, &bytes_);
     home_margins_ = uploadReadOnly(ctx, mesh.home_margin, &bytes_);
-    partners_ = uploadReadOnly(ctx, mesh.field_partners, &bytes_);
+    partners_ =
+        cl::Buffer(ctx, CL_MEM_READ_ONLY,
+                   std::max<size_t>(1, static_cast<size_t>(mesh.field_count) *
+                                           TrackingMesh::kMaxPartners) *
+                       sizeof(int));
     ring_offsets_ = uploadReadOnly(ctx, mesh.rings.offsets, &bytes_);
     ring_neighbours_ = uploadReadOnly(ctx, mesh.rings.neighbours, &bytes_);
     ring_weights_ = uploadReadOnly(ctx, mesh.relaxation.weights, &bytes_);
@@ -160,6 +165,13 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
                   "than " +
                       std::to_string(vertex_count_) + " vertices");
     fields_->setPose(skinning);  // validates the pose
+    // Kept in a member: the non-blocking write reads it until it is done.
+    partners_staging_ = activePartners(*mesh_, skinning);
+    if (!partners_staging_.empty()) {
+      context_->queue().enqueueWriteBuffer(
+          partners_, CL_FALSE, 0, partners_staging_.size() * sizeof(int),
+          partners_staging_.data());
+    }
     times_ = {};
     events_.clear();
     current_ = 0;

@@ -23,7 +23,8 @@ namespace isk {
 class ClSurfaceTracking {
  public:
   // `fields` (kept by reference, must outlive this) evaluates the
-  // character's composed field on the same context; `mesh` is uploaded.
+  // character's composed field on the same context; `mesh` is uploaded and
+  // kept by reference too (each pose reads its partner pairs).
   // Throws isk::Error: kInvalidArgument for bad options or a mesh of another
   // size, kOpenCl naming the failing call.
   ClSurfaceTracking(ClFieldEvaluation& fields, const TrackingMesh& mesh,
@@ -85,6 +86,8 @@ class ClSurfaceTracking {
   ClFieldEvaluation* fields_;
   std::shared_ptr<ClContext> context_;
   SurfaceTrackingOptions options_;
+  const TrackingMesh* mesh_;
+  std::vector<int> partners_staging_;  // activePartners of the last pose
   int vertex_count_ = 0;
   float diagonal_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
