@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   }
   isk::bench::registerSkinningBenchmarks();
   isk::bench::registerFieldBenchmarks();
+  isk::bench::registerImplicitBenchmarks();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

@@ -36,11 +36,15 @@ const Rig& rigOf(const Model& model) {
   return *slot;
 }
 
+int clipFrameCount(const Rig& rig) {
+  if (rig.clips.empty()) return 1;
+  return std::max(1, static_cast<int>(rig.clips.front().duration * 30.0) + 1);
+}
+
 TransformList poseAt(const Rig& rig, int64_t frame) {
   if (rig.clips.empty()) return bindPoseSkinning(rig.skeleton);
   const AnimationClip& clip = rig.clips.front();
-  const int frames = std::max(1, static_cast<int>(clip.duration * 30.0) + 1);
-  const double t = clip.start + (frame % frames) / 30.0;
+  const double t = clip.start + (frame % clipFrameCount(rig)) / 30.0;
   return skinningTransforms(
       rig.skeleton,
       globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t)));

@@ -24,11 +24,15 @@ const std::vector<Model>& models();
 // Whether the model can run (asset models need the data folder).
 bool available(const Model& model);
 const Rig& rigOf(const Model& model);
-// Skinning transforms of frame `frame` of the rig's first clip (30 fps).
+// Frames of the rig's first clip at 30 fps (1 without a clip).
+int clipFrameCount(const Rig& rig);
+// Skinning transforms of frame `frame` (modulo clipFrameCount) of the rig's
+// first clip.
 TransformList poseAt(const Rig& rig, int64_t frame);
 std::shared_ptr<ClContext> context();
 
 void registerSkinningBenchmarks();
 void registerFieldBenchmarks();
+void registerImplicitBenchmarks();
 
 }  // namespace isk::bench

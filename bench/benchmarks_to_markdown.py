@@ -8,8 +8,9 @@ Each row pairs the OpenCL and CPU-reference runs of one model and method from
 the same run, so the speed-up is a ratio measured in one process. Tables are
 printed for the families present: Frame (skinning), FieldBuild (offline
 fields), FieldEval (field evaluation), FieldCompose (the blend or the bulge
-at every joint, against FieldEval's union of the same run) and OperatorTable
-(baking one operator table).
+at every joint, against FieldEval's union of the same run), OperatorTable
+(baking one operator table) and Implicit (implicit skinning per frame against
+DQS on the same device and against the CPU reference, same run).
 """
 import json
 import sys
@@ -140,6 +141,41 @@ def operator_table_table(data):
     print()
 
 
+def implicit_table(data):
+    # Implicit/<model>/<backend>[/min_time:<s>]/real_time, backend one of
+    # opencl (ImplicitSkinner), dqs (ClSkinning, same device), reference
+    # (CpuImplicitSkinner).
+    runs = group_runs(data, "Implicit", 3, lambda p: (p[1], p[2]))
+    if not runs:
+        return
+    stages = ("skinning", "projection", "relaxation", "smoothing", "normals",
+              "upload", "readback")
+    print("| model | vertices | tracked | implicit ms/frame | DQS ms/frame "
+          "| implicit / DQS | implicit fps | DQS fps | "
+          + " | ".join(f"{s} ms" for s in stages)
+          + " | contact vertices | reference ms/frame "
+          "| OpenCL speed-up |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|"
+          + "---:|" * len(stages) + "---:|---:|---:|")
+    for model, backends in runs.items():
+        cl = backends.get("opencl")
+        if not cl:
+            continue
+        dqs, ref = backends.get("dqs"), backends.get("reference")
+        cl_ms = cl["real_time"]
+        dqs_ms = f"{dqs['real_time']:.3f}" if dqs else "n/a"
+        ratio = f"{cl_ms / dqs['real_time']:.1f}x" if dqs else "n/a"
+        dqs_fps = f"{dqs['fps']:.0f}" if dqs else "n/a"
+        ref_ms = f"{ref['real_time']:.3f}" if ref else "n/a"
+        speedup = f"{ref['real_time'] / cl_ms:.2f}x" if ref else "n/a"
+        print(f"| {model} | {int(cl['vertices'])} | {int(cl['tracked'])} | "
+              f"{cl_ms:.3f} | {dqs_ms} | "
+              f"{ratio} | {cl['fps']:.1f} | {dqs_fps} | "
+              + " | ".join(f"{cl[s + '_ms']:.3f}" for s in stages)
+              + f" | {cl['contact']:.0f} | {ref_ms} | {speedup} |")
+    print()
+
+
 def main(path):
     with open(path) as f:
         data = json.load(f)
@@ -153,6 +189,7 @@ def main(path):
     field_eval_table(data)
     field_compose_table(data)
     operator_table_table(data)
+    implicit_table(data)
 
 
 if __name__ == "__main__":
