@@ -26,12 +26,6 @@
 #include "operator_plots.hpp"
 #include "test_support.hpp"
 
-// stb_image decodes the pictures; static, so no other copy can clash.
-#define STB_IMAGE_IMPLEMENTATION
-#define STB_IMAGE_STATIC
-#define STBI_ONLY_PNG
-#include <stb/stb_image.h>
-
 namespace isk {
 namespace {
 
@@ -262,33 +256,16 @@ TEST_F(DemoRun, WritesTheTablesFramesAndFieldPictures) {
 }
 
 // A decoded RGB picture (empty when it cannot be decoded).
-struct Picture {
-  int width = 0, height = 0;
-  std::vector<uint8_t> rgb;
-
+// A decoded picture with its pixels as samples::Rgb.
+struct Picture : test::DecodedPng {
   samples::Rgb at(int x, int y) const {
-    const size_t i = (static_cast<size_t>(y) * width + x) * 3;
-    return {rgb[i], rgb[i + 1], rgb[i + 2]};
+    const uint8_t* p = DecodedPng::at(x, y);
+    return {p[0], p[1], p[2]};
   }
 };
 
 Picture decodePng(const std::string& path) {
-  const std::string bytes = test::readFile(path);
-  Picture picture;
-  int channels = 0;
-  stbi_uc* pixels =
-      stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(bytes.data()),
-                            static_cast<int>(bytes.size()), &picture.width,
-                            &picture.height, &channels, 3);
-  if (!pixels) {
-    ADD_FAILURE() << path
-                  << ": stb_image cannot decode it: " << stbi_failure_reason();
-    return Picture{};
-  }
-  picture.rgb.assign(pixels,
-                     pixels + size_t(picture.width) * picture.height * 3);
-  stbi_image_free(pixels);
-  return picture;
+  return Picture{test::decodePngFile(path)};
 }
 
 // Pixel (x, y) of panel p (0: LBS, 1: DQS, 2: implicit), the panels' square

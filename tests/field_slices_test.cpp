@@ -21,12 +21,6 @@
 #include "isk/rig.hpp"
 #include "test_support.hpp"
 
-// stb_image decodes the pictures; static, so no other copy can clash.
-#define STB_IMAGE_IMPLEMENTATION
-#define STB_IMAGE_STATIC
-#define STBI_ONLY_PNG
-#include <stb/stb_image.h>
-
 namespace isk {
 namespace {
 
@@ -62,18 +56,12 @@ struct PixelCounts {
 };
 
 PixelCounts countPixels(const std::string& path) {
-  const std::string bytes = readFile(path);
+  const test::DecodedPng png = test::decodePngFile(path);
   PixelCounts counts;
-  int channels = 0;
-  stbi_uc* pixels =
-      stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(bytes.data()),
-                            static_cast<int>(bytes.size()), &counts.width,
-                            &counts.height, &channels, 3);
-  if (!pixels) {
-    ADD_FAILURE() << path
-                  << ": stb_image cannot decode it: " << stbi_failure_reason();
-    return counts;
-  }
+  if (!png.valid()) return counts;
+  counts.width = png.width;
+  counts.height = png.height;
+  const uint8_t* pixels = png.rgb.data();
   counts.total = long(counts.width) * counts.height;
   for (long i = 0; i < counts.total; ++i) {
     const int r = pixels[3 * i], g = pixels[3 * i + 1], b = pixels[3 * i + 2];
@@ -91,7 +79,6 @@ PixelCounts countPixels(const std::string& path) {
       ++counts.joint;
     }
   }
-  stbi_image_free(pixels);
   return counts;
 }
 

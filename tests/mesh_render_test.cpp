@@ -16,12 +16,7 @@
 #include "isk/procedural.hpp"
 #include "isk/rig.hpp"
 #include "slice_image.hpp"
-
-// stb_image decodes the pictures; static, so no other copy can clash.
-#define STB_IMAGE_IMPLEMENTATION
-#define STB_IMAGE_STATIC
-#define STBI_ONLY_PNG
-#include <stb/stb_image.h>
+#include "test_support.hpp"
 
 namespace isk {
 namespace {
@@ -325,18 +320,10 @@ TEST(MeshRender, FrameViewsGivesPanelsOneScale) {
 
 std::vector<uint8_t> decodePng(const std::string& bytes, int& width,
                                int& height) {
-  int channels = 0;
-  stbi_uc* pixels = stbi_load_from_memory(
-      reinterpret_cast<const stbi_uc*>(bytes.data()),
-      static_cast<int>(bytes.size()), &width, &height, &channels, 3);
-  if (!pixels) {
-    ADD_FAILURE() << "stb_image cannot decode the PNG: "
-                  << stbi_failure_reason();
-    return {};
-  }
-  std::vector<uint8_t> rgb(pixels, pixels + size_t(width) * height * 3);
-  stbi_image_free(pixels);
-  return rgb;
+  test::DecodedPng png = test::decodePng(bytes, "the encoded PNG");
+  width = png.width;
+  height = png.height;
+  return std::move(png.rgb);
 }
 
 bool isText(const Rgb& c) { return brightness(c) < 150; }

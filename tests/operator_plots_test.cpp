@@ -20,12 +20,6 @@
 #include "isk/composition_operator.hpp"
 #include "test_support.hpp"
 
-// stb_image decodes the pictures; static, so no other copy can clash.
-#define STB_IMAGE_IMPLEMENTATION
-#define STB_IMAGE_STATIC
-#define STBI_ONLY_PNG
-#include <stb/stb_image.h>
-
 namespace isk {
 namespace {
 
@@ -65,14 +59,7 @@ std::string describe(const std::vector<std::string>& args,
 }
 
 // A decoded picture, 3 bytes a pixel.
-struct Picture {
-  int width = 0, height = 0;
-  std::vector<unsigned char> rgb;
-
-  bool valid() const { return width > 0; }
-  const unsigned char* at(int x, int y) const {
-    return &rgb[(static_cast<size_t>(y) * width + x) * 3];
-  }
+struct Picture : test::DecodedPng {
   // The palette's inside (red) and outside (blue) colours, iso lines and
   // contours included (darkened, still red or blue).
   bool red(int x, int y) const {
@@ -93,23 +80,7 @@ struct Picture {
 };
 
 Picture decode(const std::string& path) {
-  const std::string bytes = test::readFile(path);
-  Picture picture;
-  int channels = 0;
-  stbi_uc* pixels =
-      stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(bytes.data()),
-                            static_cast<int>(bytes.size()), &picture.width,
-                            &picture.height, &channels, 3);
-  if (!pixels) {
-    ADD_FAILURE() << path
-                  << ": stb_image cannot decode it: " << stbi_failure_reason();
-    picture.width = picture.height = 0;
-    return picture;
-  }
-  picture.rgb.assign(pixels,
-                     pixels + size_t(picture.width) * picture.height * 3);
-  stbi_image_free(pixels);
-  return picture;
+  return Picture{test::decodePngFile(path)};
 }
 
 void expectPngSize(const std::string& path, int width, int height) {

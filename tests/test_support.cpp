@@ -1,5 +1,10 @@
 #include "test_support.hpp"
 
+// stb_image decodes the pictures of the sample tests: compiled once, here.
+#define STB_IMAGE_IMPLEMENTATION
+#define STB_IMAGE_STATIC
+#define STBI_ONLY_PNG
+#include <stb/stb_image.h>
 #include <sys/wait.h>
 
 #include <cmath>
@@ -259,6 +264,26 @@ std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
         globalTransforms(rig.skeleton, clip.sampleLocal(rig.skeleton, t))));
   }
   return poses;
+}
+
+DecodedPng decodePng(const std::string& bytes, const std::string& what) {
+  DecodedPng png;
+  int channels = 0;
+  stbi_uc* pixels = stbi_load_from_memory(
+      reinterpret_cast<const stbi_uc*>(bytes.data()),
+      static_cast<int>(bytes.size()), &png.width, &png.height, &channels, 3);
+  if (!pixels) {
+    ADD_FAILURE() << what
+                  << ": stb_image cannot decode it: " << stbi_failure_reason();
+    return DecodedPng{};
+  }
+  png.rgb.assign(pixels, pixels + size_t(png.width) * png.height * 3);
+  stbi_image_free(pixels);
+  return png;
+}
+
+DecodedPng decodePngFile(const std::string& path) {
+  return decodePng(readFile(path), path);
 }
 
 }  // namespace isk::test

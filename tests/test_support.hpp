@@ -105,6 +105,20 @@ std::vector<std::vector<std::string>> tableRows(const std::string& text,
 // The number a cell spells; NaN when it is not entirely a number.
 double number(const std::string& cell);
 
+// A PNG decoded to 8-bit RGB (stb_image), top row first. Empty (width 0)
+// when the bytes do not decode; the decoders then add a test failure naming
+// `what` and stb_image's reason.
+struct DecodedPng {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgb;  // width * height * 3
+  bool valid() const { return width > 0; }
+  const uint8_t* at(int x, int y) const {
+    return &rgb[(static_cast<size_t>(y) * width + x) * 3];
+  }
+};
+DecodedPng decodePng(const std::string& bytes, const std::string& what);
+DecodedPng decodePngFile(const std::string& path);
+
 // Skinning transforms that bend `rig` at `joint` by `degrees` about `axis`
 // through the joint's bind position: the joint and everything below it
 // turn rigidly.
