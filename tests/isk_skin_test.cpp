@@ -374,6 +374,33 @@ TEST(IskSkinTest, RefusesAFolderWithFramesUnlessOverwrite) {
   EXPECT_EQ(runIskSkin(fresh).exit_code, 0);
 }
 
+TEST(IskSkinTest, ImplicitMethodRunsOnEveryAsset) {
+  if (!test::haveAssets()) {
+    GTEST_SKIP() << test::missingAssetsMessage(
+        "isk-skin --method implicit "
+        "on the assets");
+  }
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    ScopedTempDir dir;
+    const std::vector<std::string> args = {samples::dataFile(name),
+                                           "--method",
+                                           "implicit",
+                                           "--frames",
+                                           "3",
+                                           "--report",
+                                           dir / "report.json"};
+    const RunOutput run = runIskSkin(args);
+    ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+    const nlohmann::json report = readReport(dir / "report.json");
+    expectReportKeys(report);
+    EXPECT_TRUE(report["stage_ms"].contains("projection"));
+    EXPECT_TRUE(report["quality"].contains("self_intersections"));
+    EXPECT_TRUE(report["quality"].contains("contact_vertices"));
+    EXPECT_LT(report["quality"]["rest_pose_error"].get<double>(), 1e-5);
+  }
+}
+
 TEST(IskSkinTest, RiggedSimpleAssetKeepsItsInputUntouched) {
   if (!test::haveAssets()) {
     GTEST_SKIP() << test::missingAssetsMessage("isk-skin on RiggedSimple.dae");
