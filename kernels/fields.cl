@@ -106,15 +106,19 @@ float4 trilinear_nodes(__global const float4* grid, const int n,
 }
 #endif
 
+// Whether node coordinates u lie in the grid (its support box).
+bool inside_nodes(const float3 u, const int resolution) {
+  const float last = (float)(resolution - 1);
+  return u.x >= 0.0f && u.y >= 0.0f && u.z >= 0.0f && u.x <= last &&
+         u.y <= last && u.z <= last;
+}
+
 // Value and bone-frame gradient of field `field` at node coordinates u
 // (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
 float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
                           __global const float4* params, const uint field,
                           const int resolution, const float3 u) {
-  const float last = (float)(resolution - 1);
-  if (!(u.x >= 0.0f && u.y >= 0.0f && u.z >= 0.0f && u.x <= last &&
-        u.y <= last && u.z <= last))
-    return (float4)(0.0f);
+  if (!inside_nodes(u, resolution)) return (float4)(0.0f);
 #if ISK_FIELDS_IMAGE
   const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
   return read_imagef(field_data, kFieldSampler, (float4)(origin + u, 0.0f));
@@ -125,12 +129,10 @@ float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
 #endif
 }
 
-// Value and model-space gradient of field `field` at model-space point x
-// (posed): x is taken to the bone frame by the field's 3x4 rows, sampled,
-// and the gradient comes back by the transpose of the rows' linear part.
-float4 sample_field(ISK_FIELD_DATA_T field_data,
-                    __global const float4* field_params, const uint field,
-                    const int resolution, const float3 x) {
+// Node coordinates of model-space point x (posed) in field `field`'s grid:
+// x is taken to the bone frame by the field's 3x4 rows.
+float3 field_node_coords(__global const float4* field_params,
+                         const uint field, const float3 x) {
   __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
   const float4 r0 = p[0];
   const float4 r1 = p[1];
@@ -139,22 +141,44 @@ float4 sample_field(ISK_FIELD_DATA_T field_data,
   const float3 bone =
       (float3)(r0.x, r1.x, r2.x) * x.x + (float3)(r0.y, r1.y, r2.y) * x.y +
       (float3)(r0.z, r1.z, r2.z) * x.z + (float3)(r0.w, r1.w, r2.w);
-  const float3 u = (bone - p[3].xyz) * p[4].xyz;
+  return (bone - p[3].xyz) * p[4].xyz;
+}
+
+// Value and model-space gradient of field `field` at node coordinates u:
+// the gradient comes back by the transpose of the rows' linear part.
+float4 sample_field_at(ISK_FIELD_DATA_T field_data,
+                       __global const float4* field_params, const uint field,
+                       const int resolution, const float3 u) {
+  __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
   const float4 s =
       sample_field_nodes(field_data, field_params, field, resolution, u);
-  const float3 g = s.y * r0.xyz + s.z * r1.xyz + s.w * r2.xyz;
+  const float3 g = s.y * p[0].xyz + s.z * p[1].xyz + s.w * p[2].xyz;
   return (float4)(s.x, g);
+}
+
+// Value and model-space gradient of field `field` at model-space point x
+// (posed).
+float4 sample_field(ISK_FIELD_DATA_T field_data,
+                    __global const float4* field_params, const uint field,
+                    const int resolution, const float3 x) {
+  return sample_field_at(field_data, field_params, field, resolution,
+                         field_node_coords(field_params, field, x));
 }
 
 // The field `field` at x if x lies in its bounding sphere, else 0 (value and
 // gradient): the broad phase.
+bool inside_sphere(__global const float4* field_params, const uint field,
+                   const float3 x) {
+  const float4 sphere = field_params[ISK_FIELD_PARAM_STRIDE * field + 6];
+  const float3 d = x - sphere.xyz;
+  return d.x * d.x + d.y * d.y + d.z * d.z <= sphere.w;
+}
+
 float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
                            __global const float4* field_params,
                            const uint field, const int resolution,
                            const float3 x) {
-  const float4 sphere = field_params[ISK_FIELD_PARAM_STRIDE * field + 6];
-  const float3 d = x - sphere.xyz;
-  if (!(d.x * d.x + d.y * d.y + d.z * d.z <= sphere.w)) return (float4)(0.0f);
+  if (!inside_sphere(field_params, field, x)) return (float4)(0.0f);
   return sample_field(field_data, field_params, field, resolution, x);
 }
 
@@ -216,19 +240,24 @@ float4 compose_pair(ISK_COMPOSITION_PARAMS, const uint k, const float4 a,
   return (float4)(g.x, d1 * ga + d2 * gb);
 }
 
+// Pair k on top of `best` (the max of the fields so far).
+float4 compose_one_pair(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
+                        const float3 x, const uint k, const float4 best) {
+  const int4 pair = pairs[k];
+  const float4 a = sample_field_culled(field_data, field_params, (uint)pair.x,
+                                       resolution, x);
+  if (!(a.x > 0.0f)) return best;  // the pair is max(a, b): already in
+  const float4 b = sample_field_culled(field_data, field_params, (uint)pair.y,
+                                       resolution, x);
+  if (!(b.x > 0.0f)) return best;
+  return compose_union(best, compose_pair(ISK_COMPOSITION_ARGS, k, a, b));
+}
+
 // The blend and bulge pairs on top of `best` (the max of every field).
 float4 compose_pairs(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                      const float3 x, float4 best) {
-  for (uint k = 0; k < pair_count; ++k) {
-    const int4 pair = pairs[k];
-    const float4 a = sample_field_culled(field_data, field_params,
-                                         (uint)pair.x, resolution, x);
-    if (!(a.x > 0.0f)) continue;  // the pair is max(a, b): already in
-    const float4 b = sample_field_culled(field_data, field_params,
-                                         (uint)pair.y, resolution, x);
-    if (!(b.x > 0.0f)) continue;
-    best = compose_union(best, compose_pair(ISK_COMPOSITION_ARGS, k, a, b));
-  }
+  for (uint k = 0; k < pair_count; ++k)
+    best = compose_one_pair(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, k, best);
   return best;
 }
 

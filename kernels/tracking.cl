@@ -26,26 +26,77 @@
 #define RING_CLOSED 0
 #define MAX_PARTNERS 8
 
-// The contact by home field's data (four consecutive kernel arguments):
-// each vertex's home field (-1: none) and rest margin, each field's partners
+// The contact by home field's data and the tracking broad phase (eight
+// consecutive kernel arguments, bound by ClSurfaceTracking::setContactArgs):
+// each vertex's home field (-1: none) and rest margin; each field's partners
 // at this pose (activePartners: blend pairs turned by less than 90 degrees;
-// MAX_PARTNERS per field, -1 padded), and contact_params:
-// x 1 when the contact by home field is on (0: the paper's march only), y
-// its gap in field units.
-#define ISK_CONTACT_PARAMS                                         \
-  __global const int *home_fields, __global const float *home_margins, \
-      __global const int *partners, const float4 contact_params
+// MAX_PARTNERS per field, -1 padded); the pose's field neighbourhoods
+// (fieldNeighbourhoods: per home field h, in
+// neighbour_entries[neighbour_offsets[h] .. neighbour_offsets[h + 1]] the
+// fields whose posed support box meets h's, ascending, NEIGHBOUR_PARTNER set
+// on h and its partners; in neighbour_pairs[...pair_offsets[h]...] the pairs
+// both of whose fields are listed); contact_params: x 1 when the contact by
+// home field is on (0: the paper's march only), y its gap in field units.
+#define ISK_TRACKING_PARAMS                                              \
+  __global const int *home_fields, __global const float *home_margins,  \
+      __global const int *partners, __global const int *neighbour_offsets, \
+      __global const int *neighbour_entries,                             \
+      __global const int *neighbour_pair_offsets,                        \
+      __global const int *neighbour_pairs, const float4 contact_params
+#define ISK_TRACKING_ARGS                                                \
+  home_fields, home_margins, partners, neighbour_offsets, neighbour_entries, \
+      neighbour_pair_offsets, neighbour_pairs, contact_params
+#define NEIGHBOUR_PARTNER 0x10000
+#define NEIGHBOUR_FIELD 0xffff
 
-// The composed field at x, plus (home >= 0) the home field's sample and the
-// largest sample of the other parts' fields (neither the home field nor its
-// partners), as homeSamples does on the CPU.
+// The composed field at x, plus the home field's sample and the largest
+// sample of the other parts' fields (neither the home field nor its
+// partners), as homeSamples does on the CPU. `home` is the vertex's home
+// field (-1: none): while x lies in its support box only the fields of its
+// neighbourhood (boxes that meet it) can be non-zero, so only they are
+// sampled (same result, same order, as sampling every field).
 float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
-                       const float3 x, const int home,
-                       __global const int* partners, float4* home_out,
-                       float4* other_out) {
+                       ISK_TRACKING_PARAMS, const float3 x, const int home,
+                       float4* home_out, float4* other_out) {
   float4 best = (float4)(0.0f);
   float4 h = (float4)(0.0f);
   float4 other = (float4)(0.0f);
+  bool listed = false;
+  float3 home_u = (float3)(0.0f);
+  if (home >= 0) {
+    home_u = field_node_coords(field_params, (uint)home, x);
+    listed = inside_nodes(home_u, resolution);
+  }
+  if (listed) {
+    const int end = neighbour_offsets[home + 1];
+    for (int n = neighbour_offsets[home]; n < end; ++n) {
+      const int entry = neighbour_entries[n];
+      const uint i = (uint)(entry & NEIGHBOUR_FIELD);
+      float4 s;
+      if ((int)i == home)  // its node coordinates are known
+        s = inside_sphere(field_params, i, x)
+                ? sample_field_at(field_data, field_params, i, resolution,
+                                  home_u)
+                : (float4)(0.0f);
+      else
+        s = sample_field_culled(field_data, field_params, i, resolution, x);
+      best = compose_union(best, s);
+      if ((int)i == home)
+        h = s;
+      else if (!(entry & NEIGHBOUR_PARTNER))
+        other = compose_union(other, s);
+    }
+    const int pairs_end = neighbour_pair_offsets[home + 1];
+    for (int n = neighbour_pair_offsets[home]; n < pairs_end; ++n) {
+      const uint k = (uint)neighbour_pairs[n];
+      if (k < pair_count)
+        best = compose_one_pair(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, k,
+                                best);
+    }
+    *home_out = h;
+    *other_out = other;
+    return best;
+  }
   for (uint i = 0; i < field_count; ++i) {
     const float4 s =
         sample_field_culled(field_data, field_params, i, resolution, x);
@@ -85,14 +136,14 @@ __kernel void track_begin(const uint vertex_count,
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
 // cos(contact angle), tolerance (field units), largest move (model units);
-// min_gradient: smallest |grad f| (model units); then ISK_CONTACT_PARAMS.
+// min_gradient: smallest |grad f| (model units); then ISK_TRACKING_PARAMS.
 // prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
 __kernel void track_project(const uint vertex_count, __global float* positions,
                             __global const float* iso_values,
                             __global uchar* states,
                             __global float4* prev_gradients, const int steps,
                             const float4 step_params, const float min_gradient,
-                            ISK_CONTACT_PARAMS, ISK_FIELD_PARAMS,
+                            ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
                             ISK_COMPOSITION_PARAMS) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
@@ -101,12 +152,14 @@ __kernel void track_project(const uint vertex_count, __global float* positions,
   float3 x = vload3(v, positions);
   float4 prev = prev_gradients[v];
   const float iso = iso_values[v];
-  const int home = contact_params.x > 0.0f ? home_fields[v] : -1;
+  const int home_field = home_fields[v];
+  const int home = contact_params.x > 0.0f ? home_field : -1;
   const float margin = home >= 0 ? home_margins[v] : 0.0f;
   for (int s = 0; s < steps; ++s) {
     float4 h, other;
-    const float4 sample = sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS,
-                                          x, home, partners, &h, &other);
+    const float4 sample =
+        sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, ISK_TRACKING_ARGS,
+                        x, home_field, &h, &other);
     const float3 g = sample.yzw;
     const float g_len = sqrt(g.x * g.x + g.y * g.y + g.z * g.z);
     if (!(sample.x > 0.0f) || !(g_len > min_gradient)) {
@@ -176,7 +229,7 @@ __kernel void track_relax(const uint vertex_count,
                           __global const uint* ring_offsets,
                           __global const int* ring_neighbours,
                           __global const float* ring_weights,
-                          ISK_CONTACT_PARAMS, ISK_FIELD_PARAMS,
+                          ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
                           ISK_COMPOSITION_PARAMS) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
@@ -186,10 +239,10 @@ __kernel void track_relax(const uint vertex_count,
     // The surface the vertex marches to: its iso-surface, or the contact
     // surface while it marches to a contact.
     const bool to_contact = prev_gradients[v].w == 2.0f;
-    const int home = to_contact ? home_fields[v] : -1;
     float4 h, other;
-    const float4 sample = sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS,
-                                          x, home, partners, &h, &other);
+    const float4 sample =
+        sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, ISK_TRACKING_ARGS,
+                        x, home_fields[v], &h, &other);
     float distance = sample.x - iso_values[v];
     float3 normal = sample.yzw;
     if (to_contact) {

@@ -13,6 +13,8 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <random>
+#include <string>
 
 #include "isk/composition_operator.hpp"
 #include "isk/cpu_skinning.hpp"
@@ -341,6 +343,130 @@ TEST(SurfaceTracking, BlendAndBulgeFoldsDoNotCross) {
   united.readPositions(b);
   EXPECT_GT(enclosedVolume(a, mesh.triangles),
             enclosedVolume(b, mesh.triangles) + 0.005 * rest);
+}
+
+// --- the broad phase: field neighbourhoods --------------------------------
+
+TEST(FieldNeighbourhoods, PosedBoxesMeetBySeparatingAxes) {
+  FieldGrid unit;
+  unit.box_min = Eigen::Vector3f(0, 0, 0);
+  unit.box_max = Eigen::Vector3f(1, 1, 1);
+  const Eigen::Affine3f identity = Eigen::Affine3f::Identity();
+  auto moved = [](const Eigen::Vector3f& t, float degrees_z) {
+    // Model -> bone of a box moved by t and turned about z (bone -> model).
+    Eigen::Affine3f to_model =
+        Eigen::Translation3f(t) *
+        Eigen::AngleAxisf(degrees_z * M_PI / 180.f, Eigen::Vector3f::UnitZ());
+    return Eigen::Affine3f(to_model.inverse(Eigen::Affine));
+  };
+  EXPECT_TRUE(posedBoxesMeet(unit, identity, unit, identity));
+  EXPECT_TRUE(posedBoxesMeet(unit, identity, unit, moved({0.5f, 0.5f, 0}, 0)));
+  EXPECT_TRUE(posedBoxesMeet(unit, identity, unit, moved({1.f, 0, 0}, 0)));
+  EXPECT_FALSE(posedBoxesMeet(unit, identity, unit, moved({1.1f, 0, 0}, 0)));
+  EXPECT_FALSE(posedBoxesMeet(unit, identity, unit, moved({0, 0, -1.2f}, 0)));
+  // A diamond beside the box's corner: the bounding spheres overlap, the
+  // boxes do not (only a face normal of the diamond separates them).
+  EXPECT_FALSE(
+      posedBoxesMeet(unit, identity, unit, moved({2.3f, 0.5f, 0}, 45)));
+  EXPECT_TRUE(posedBoxesMeet(unit, identity, unit, moved({1.5f, 0.5f, 0}, 45)));
+}
+
+// Every field that is non-zero at a point of a home field's box is listed
+// in that home field's neighbourhood, lists are ascending and tagged with
+// the pose's partners, and sampling the list gives the composed field of
+// every field bit for bit.
+void checkNeighbourhoods(const Rig& rig, const ImplicitFields& fields,
+                         const TransformList& pose, bool expect_pruning) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
+  const std::vector<int> partners = activePartners(mesh, pose);
+  const FieldNeighbourhoods nb = fieldNeighbourhoods(
+      mesh, fields.grids, fieldTransforms(fields.grids, pose), partners);
+  const int field_count = fields.grids.fieldCount();
+  ASSERT_EQ(nb.offsets.size(), static_cast<size_t>(field_count) + 1);
+  ASSERT_EQ(nb.pair_offsets.size(), static_cast<size_t>(field_count) + 1);
+  const ComposedFieldSampler sampler(fields.grids, pose, &fields.composition);
+  std::vector<Eigen::Vector4f> all(field_count), subset(field_count);
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  for (int h = 0; h < field_count; ++h) {
+    const int* list = nb.entries.data() + nb.offsets[h];
+    const int count = nb.offsets[h + 1] - nb.offsets[h];
+    std::vector<char> listed(field_count, 0);
+    for (int n = 0; n < count; ++n) {
+      const int i = list[n] & FieldNeighbourhoods::kFieldMask;
+      if (n > 0) {
+        ASSERT_LT(list[n - 1] & FieldNeighbourhoods::kFieldMask, i)
+            << "field " << h << ": list not ascending";
+      }
+      listed[i] = 1;
+      bool partner = i == h;
+      for (int k = 0; k < TrackingMesh::kMaxPartners; ++k)
+        partner = partner || partners[h * TrackingMesh::kMaxPartners + k] == i;
+      EXPECT_EQ((list[n] & FieldNeighbourhoods::kPartner) != 0, partner)
+          << "field " << h << " entry " << n;
+    }
+    ASSERT_TRUE(listed[h]) << "field " << h << " does not list itself";
+    const FieldGrid& grid = fields.grids.grids[h];
+    const Eigen::Affine3f to_model =
+        fieldTransforms(fields.grids, pose)[h].inverse(Eigen::Affine);
+    for (int s = 0; s < 400; ++s) {
+      const Eigen::Vector3f t(unit(random), unit(random), unit(random));
+      const Eigen::Vector3f x =
+          to_model *
+          (grid.box_min + t.cwiseProduct(grid.box_max - grid.box_min)).eval();
+      if (!sampler.insideBox(h, x)) continue;  // rounding at the faces
+      const Eigen::Vector4f composed = sampler.sample(x, all.data());
+      for (int i = 0; i < field_count; ++i)
+        ASSERT_TRUE(listed[i] || all[i][0] == 0.f)
+            << "field " << i << " is " << all[i][0] << " at a point of field "
+            << h << "'s box but not in its neighbourhood";
+      const Eigen::Vector4f from_list = sampler.sampleSubset(
+          x, list, count, FieldNeighbourhoods::kFieldMask, subset.data());
+      ASSERT_EQ(composed, from_list) << "home field " << h << " sample " << s;
+    }
+  }
+  if (expect_pruning) {
+    EXPECT_LT(nb.meanListed(), 0.8 * field_count)
+        << "the neighbourhoods prune almost nothing";
+  }
+}
+
+TEST(FieldNeighbourhoods, ListEveryFieldOfTheHomeBoxOnProceduralRigs) {
+  CylinderRigOptions options;
+  // Bones 5 long, radius 1: each field's support reaches about 2 beyond
+  // its part, so a box meets its neighbours' and not the far bones'.
+  options.bones = 8;
+  options.length = 40;
+  options.rings = 320;
+  options.segments = 24;
+  const Rig chain = makeCylinderRig(options);
+  for (const CompositionOperator op :
+       {CompositionOperator::kUnion, CompositionOperator::kBlend}) {
+    SCOPED_TRACE(compositionOperatorName(op));
+    ImplicitFieldsOptions field_options;
+    field_options.composition.default_operator = op;
+    const ImplicitFields fields = buildImplicitFields(chain, field_options);
+    ASSERT_EQ(fields.grids.fieldCount(), 8);
+    for (const double degrees : {0.0, 60.0, 135.0}) {
+      SCOPED_TRACE(std::to_string(degrees) + " degrees");
+      checkNeighbourhoods(chain, fields,
+                          bendAt(chain, chain.skeleton.find("bone3"), degrees),
+                          /*expect_pruning=*/true);
+    }
+  }
+}
+
+TEST(FieldNeighbourhoods, ListEveryFieldOfTheHomeBoxOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage(
+        "field neighbourhoods on assets");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    const ImplicitFields& fields = test::implicitFieldsOf(name);
+    for (const TransformList& pose : clipPoses(rig, 3))
+      checkNeighbourhoods(rig, fields, pose, /*expect_pruning=*/false);
+  }
 }
 
 TEST(SurfaceTracking, RigidVerticesStopAtTheirFirstStep) {

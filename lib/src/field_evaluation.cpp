@@ -1,5 +1,6 @@
 #include "isk/field_evaluation.hpp"
 
+#include <algorithm>
 #include <string>
 
 #include "isk/error.hpp"
@@ -109,30 +110,59 @@ Eigen::Vector4f ComposedFieldSampler::sample(const Eigen::Vector3f& x,
   }
   Eigen::Vector4f best = Eigen::Vector4f::Zero();
   for (int i = 0; i < field_count; ++i) {
-    Eigen::Vector4f& sample = samples[i];
-    sample.setZero();
-    // Broad phase: a point outside the sphere is outside the support box.
-    if ((x - spheres_[i].head<3>()).squaredNorm() <= spheres_[i][3]) {
-      const Eigen::Vector4f local =
-          fields_->grids[i].sampleLocal(to_bone_[i] * x);
-      // Gradient back to model space: transpose of the inverse's linear
-      // part.
-      sample[0] = local[0];
-      sample.tail<3>() = to_bone_[i].linear().transpose() * local.tail<3>();
-    }
-    if (sample[0] > best[0]) best = sample;  // union: max, first on ties
+    samples[i] = sampleField(i, x);
+    if (samples[i][0] > best[0]) best = samples[i];  // union: first on ties
   }
-  if (composition_) {
-    for (size_t n = 0; n < joint_angles_.size(); ++n) {
-      const FieldPair& pair =
-          composition_->pairs[composition_->blended_pairs[n]];
-      const Eigen::Vector4f& a = samples[pair.field_a];
-      const Eigen::Vector4f& b = samples[pair.field_b];
-      if (!(a[0] > 0.f && b[0] > 0.f)) continue;  // max(a, b) already in
-      const Eigen::Vector4f g =
-          composePair(*composition_, pair, a, b, joint_angles_[n]);
-      if (g[0] > best[0]) best = g;
-    }
+  return composePairs(samples, best);
+}
+
+Eigen::Vector4f ComposedFieldSampler::sampleSubset(
+    const Eigen::Vector3f& x, const int* subset, int subset_count, int mask,
+    Eigen::Vector4f* per_field) const {
+  std::fill(per_field, per_field + fields_->fieldCount(),
+            Eigen::Vector4f::Zero());
+  Eigen::Vector4f best = Eigen::Vector4f::Zero();
+  for (int n = 0; n < subset_count; ++n) {
+    const int i = subset[n] & mask;
+    per_field[i] = sampleField(i, x);
+    if (per_field[i][0] > best[0]) best = per_field[i];
+  }
+  return composePairs(per_field, best);
+}
+
+bool ComposedFieldSampler::insideBox(int i, const Eigen::Vector3f& x) const {
+  const FieldGrid& grid = fields_->grids[i];
+  const Eigen::Vector3f u =
+      (to_bone_[i] * x - grid.box_min).cwiseQuotient(grid.spacing());
+  const float last = static_cast<float>(grid.resolution - 1);
+  return u.x() >= 0 && u.y() >= 0 && u.z() >= 0 && u.x() <= last &&
+         u.y() <= last && u.z() <= last;
+}
+
+Eigen::Vector4f ComposedFieldSampler::sampleField(
+    int i, const Eigen::Vector3f& x) const {
+  // Broad phase: a point outside the sphere is outside the support box.
+  if (!((x - spheres_[i].head<3>()).squaredNorm() <= spheres_[i][3]))
+    return Eigen::Vector4f::Zero();
+  const Eigen::Vector4f local = fields_->grids[i].sampleLocal(to_bone_[i] * x);
+  // Gradient back to model space: transpose of the inverse's linear part.
+  Eigen::Vector4f sample;
+  sample[0] = local[0];
+  sample.tail<3>() = to_bone_[i].linear().transpose() * local.tail<3>();
+  return sample;
+}
+
+Eigen::Vector4f ComposedFieldSampler::composePairs(
+    const Eigen::Vector4f* samples, Eigen::Vector4f best) const {
+  if (!composition_) return best;
+  for (size_t n = 0; n < joint_angles_.size(); ++n) {
+    const FieldPair& pair = composition_->pairs[composition_->blended_pairs[n]];
+    const Eigen::Vector4f& a = samples[pair.field_a];
+    const Eigen::Vector4f& b = samples[pair.field_b];
+    if (!(a[0] > 0.f && b[0] > 0.f)) continue;  // max(a, b) already in
+    const Eigen::Vector4f g =
+        composePair(*composition_, pair, a, b, joint_angles_[n]);
+    if (g[0] > best[0]) best = g;
   }
   return best;
 }

@@ -213,6 +213,127 @@ std::vector<int> activePartners(const TrackingMesh& mesh,
   return partners;
 }
 
+namespace {
+
+// The 8 corners and 3 edge directions of grid's support box (grown by
+// margin of its size per side) in model space.
+struct PosedBox {
+  Eigen::Vector3f corners[8];
+  Eigen::Vector3f edges[3];
+};
+
+PosedBox posedBox(const FieldGrid& grid, const Eigen::Affine3f& to_bone,
+                  float margin) {
+  const Eigen::Affine3f to_model = to_bone.inverse(Eigen::Affine);
+  const Eigen::Vector3f grow = margin * (grid.box_max - grid.box_min);
+  const Eigen::Vector3f lo = grid.box_min - grow;
+  const Eigen::Vector3f hi = grid.box_max + grow;
+  PosedBox out;
+  for (int c = 0; c < 8; ++c)
+    out.corners[c] = to_model * Eigen::Vector3f(c & 1 ? hi.x() : lo.x(),
+                                                c & 2 ? hi.y() : lo.y(),
+                                                c & 4 ? hi.z() : lo.z());
+  for (int e = 0; e < 3; ++e) out.edges[e] = to_model.linear().col(e);
+  return out;
+}
+
+bool separatedAlong(const PosedBox& a, const PosedBox& b,
+                    const Eigen::Vector3f& axis) {
+  if (!(axis.squaredNorm() > 1e-20f)) return false;  // degenerate axis
+  float a_lo = a.corners[0].dot(axis), a_hi = a_lo;
+  float b_lo = b.corners[0].dot(axis), b_hi = b_lo;
+  for (int c = 1; c < 8; ++c) {
+    const float pa = a.corners[c].dot(axis);
+    const float pb = b.corners[c].dot(axis);
+    a_lo = std::min(a_lo, pa);
+    a_hi = std::max(a_hi, pa);
+    b_lo = std::min(b_lo, pb);
+    b_hi = std::max(b_hi, pb);
+  }
+  return a_hi < b_lo || b_hi < a_lo;
+}
+
+bool boxesMeet(const PosedBox& a, const PosedBox& b) {
+  // Separating axes of two parallelepipeds: the face normals of each and
+  // the cross products of their edges.
+  for (const PosedBox* box : {&a, &b})
+    for (int e = 0; e < 3; ++e)
+      if (separatedAlong(
+              a, b, box->edges[(e + 1) % 3].cross(box->edges[(e + 2) % 3])))
+        return false;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (separatedAlong(a, b, a.edges[i].cross(b.edges[j]))) return false;
+  return true;
+}
+
+}  // namespace
+
+bool posedBoxesMeet(const FieldGrid& a, const Eigen::Affine3f& a_to_bone,
+                    const FieldGrid& b, const Eigen::Affine3f& b_to_bone,
+                    float margin) {
+  return boxesMeet(posedBox(a, a_to_bone, margin),
+                   posedBox(b, b_to_bone, margin));
+}
+
+double FieldNeighbourhoods::meanListed() const {
+  if (offsets.size() < 2) return 0;
+  return static_cast<double>(entries.size()) / (offsets.size() - 1);
+}
+
+FieldNeighbourhoods fieldNeighbourhoods(
+    const TrackingMesh& mesh, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<int>& partners) {
+  const int field_count = grids.fieldCount();
+  if (static_cast<int>(to_bone.size()) != field_count)
+    throw Error(ErrorCode::kInvalidArgument,
+                "fieldNeighbourhoods: " + std::to_string(to_bone.size()) +
+                    " transforms for " + std::to_string(field_count) +
+                    " fields");
+  if (field_count > FieldNeighbourhoods::kFieldMask)
+    throw Error(ErrorCode::kInvalidArgument,
+                "fieldNeighbourhoods: " + std::to_string(field_count) +
+                    " fields, at most " +
+                    std::to_string(FieldNeighbourhoods::kFieldMask));
+  constexpr int kMax = TrackingMesh::kMaxPartners;
+  const bool with_partners =
+      partners.size() == static_cast<size_t>(field_count) * kMax;
+  std::vector<PosedBox> boxes;
+  boxes.reserve(field_count);
+  for (int i = 0; i < field_count; ++i)
+    boxes.push_back(posedBox(grids.grids[i], to_bone[i], 1e-3f));
+  std::vector<char> meet(static_cast<size_t>(field_count) * field_count, 0);
+  for (int h = 0; h < field_count; ++h)
+    for (int i = h; i < field_count; ++i)
+      meet[static_cast<size_t>(h) * field_count + i] =
+          meet[static_cast<size_t>(i) * field_count + h] =
+              i == h || boxesMeet(boxes[h], boxes[i]);
+  FieldNeighbourhoods out;
+  out.offsets.assign(1, 0);
+  out.pair_offsets.assign(1, 0);
+  for (int h = 0; h < field_count; ++h) {
+    const char* listed = &meet[static_cast<size_t>(h) * field_count];
+    for (int i = 0; i < field_count; ++i) {
+      if (!listed[i]) continue;
+      bool partner = i == h;
+      for (int k = 0; with_partners && k < kMax; ++k)
+        partner = partner || partners[static_cast<size_t>(h) * kMax + k] == i;
+      out.entries.push_back(partner ? i | FieldNeighbourhoods::kPartner : i);
+    }
+    out.offsets.push_back(static_cast<int>(out.entries.size()));
+    for (size_t k = 0; k < mesh.partner_pairs.size(); ++k) {
+      const TrackingMesh::PartnerPair& pair = mesh.partner_pairs[k];
+      if (pair.field_a >= 0 && pair.field_a < field_count &&
+          pair.field_b >= 0 && pair.field_b < field_count &&
+          listed[pair.field_a] && listed[pair.field_b])
+        out.pairs.push_back(static_cast<int>(k));
+    }
+    out.pair_offsets.push_back(static_cast<int>(out.pairs.size()));
+  }
+  return out;
+}
+
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
                         int vertex, const Eigen::Vector4f* per_field) {
   HomeSamples out;
@@ -296,6 +417,8 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
                       " transforms were given");
   skinning_ = skinning;
   partners_ = activePartners(*mesh_, skinning);
+  neighbourhoods_ = fieldNeighbourhoods(
+      *mesh_, *fields_, fieldTransforms(*fields_, skinning), partners_);
   positions_ = skinned_positions;
   fallback_normals_ = skinned_normals;
   states_.resize(n);
@@ -322,6 +445,33 @@ void CpuSurfaceTracking::setState(const Matrix3Xf& positions,
   prev_ = prev_gradients;
 }
 
+Eigen::Vector4f CpuSurfaceTracking::sampleAt(
+    const ComposedFieldSampler& sampler, int v, const Eigen::Vector3f& x,
+    Eigen::Vector4f* per_field, HomeSamples* home) const {
+  const int h = mesh_->home_field[v];
+  if (h >= 0 && h < sampler.fieldCount() && sampler.insideBox(h, x)) {
+    const FieldNeighbourhoods& nb = neighbourhoods_;
+    const int* list = nb.entries.data() + nb.offsets[h];
+    const int count = nb.offsets[h + 1] - nb.offsets[h];
+    const Eigen::Vector4f sample = sampler.sampleSubset(
+        x, list, count, FieldNeighbourhoods::kFieldMask, per_field);
+    if (home) {
+      *home = HomeSamples();
+      home->home = per_field[h];
+      for (int n = 0; n < count; ++n) {
+        const int i = list[n] & FieldNeighbourhoods::kFieldMask;
+        if (!(list[n] & FieldNeighbourhoods::kPartner) &&
+            per_field[i][0] > home->other[0])
+          home->other = per_field[i];
+      }
+    }
+    return sample;
+  }
+  const Eigen::Vector4f sample = sampler.sample(x, per_field);
+  if (home) *home = homeSamples(*mesh_, partners_.data(), v, per_field);
+  return sample;
+}
+
 void CpuSurfaceTracking::project(int steps) {
   const auto start = std::chrono::steady_clock::now();
   const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
@@ -337,7 +487,9 @@ void CpuSurfaceTracking::project(int steps) {
     for (int s = 0; s < steps; ++s) {
       if (states_[v] != TrackState::kMarching) break;
       Eigen::Vector3f x = positions_.row(v).transpose();
-      const Eigen::Vector4f sample = sampler.sample(x, per_field.data());
+      HomeSamples home;
+      const Eigen::Vector4f sample =
+          sampleAt(sampler, v, x, per_field.data(), &home);
       const float f = sample[0];
       const Eigen::Vector3f g = sample.tail<3>();
       const float g_len = g.norm();
@@ -348,8 +500,6 @@ void CpuSurfaceTracking::project(int steps) {
       const float iso = mesh_->iso_values[v];
       float entered = 0.f;  // how far another part's field exceeds home
       if (options_.home_contact && mesh_->home_field[v] >= 0) {
-        const HomeSamples home =
-            homeSamples(*mesh_, partners_.data(), v, per_field.data());
         entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
         bool marching_to_contact = prev_(v, 3) == 2.f;
         // Out of the other part's grip (left through the surface): back
@@ -417,14 +567,14 @@ void CpuSurfaceTracking::relax() {
         relaxation.rules[v] == RelaxationRule::kFixed)
       continue;
     const Eigen::Vector3f x = positions_.row(v).transpose();
-    const Eigen::Vector4f sample = sampler.sample(x, per_field.data());
+    HomeSamples home;
+    const Eigen::Vector4f sample =
+        sampleAt(sampler, v, x, per_field.data(), &home);
     // The surface the vertex marches to: its iso-surface, or the contact
     // surface c = 0 while it marches to a contact.
     float distance = sample[0] - mesh_->iso_values[v];
     Eigen::Vector3f normal = sample.tail<3>();
     if (prev_(v, 3) == 2.f) {
-      const HomeSamples home =
-          homeSamples(*mesh_, partners_.data(), v, per_field.data());
       distance = home.other[0] - home.home[0] - mesh_->home_margin[v] +
                  options_.contact_gap;
       normal = (home.other - home.home).tail<3>();

@@ -51,9 +51,26 @@ class ComposedFieldSampler {
   // (when given) receives #fields samples (0 for culled fields).
   Eigen::Vector4f sample(const Eigen::Vector3f& x,
                          Eigen::Vector4f* per_field = nullptr) const;
+  // The same restricted to the fields `subset[0..subset_count)` (indices,
+  // ascending; masked with `mask`): for points that no other field's
+  // support box can hold. `per_field` (required) receives #fields samples,
+  // 0 for the fields not sampled.
+  Eigen::Vector4f sampleSubset(const Eigen::Vector3f& x, const int* subset,
+                               int subset_count, int mask,
+                               Eigen::Vector4f* per_field) const;
+  // Whether x lies in field i's support box (where its grid is sampled).
+  bool insideBox(int i, const Eigen::Vector3f& x) const;
+  // Posed bounding sphere of each field (centre, squared radius).
+  const std::vector<Eigen::Vector4f>& spheres() const { return spheres_; }
+  // Model -> bone transform of each field at the pose.
+  const std::vector<Eigen::Affine3f>& toBone() const { return to_bone_; }
   int fieldCount() const { return fields_->fieldCount(); }
 
  private:
+  Eigen::Vector4f sampleField(int i, const Eigen::Vector3f& x) const;
+  Eigen::Vector4f composePairs(const Eigen::Vector4f* samples,
+                               Eigen::Vector4f best) const;
+
   const FieldGridSet* fields_;
   const Composition* composition_;
   std::vector<Eigen::Affine3f> to_bone_;

@@ -167,6 +167,41 @@ struct TrackingMesh {
 std::vector<int> activePartners(const TrackingMesh& mesh,
                                 const TransformList& skinning);
 
+// The exact broad phase of tracking at a pose. Per field h, the fields
+// whose posed support box (a parallelepiped: the grid's box through the
+// field's bone -> model transform) meets h's, h included, ascending, each
+// tagged kPartner when it is h or one of h's `partners` (an activePartners
+// list); and the indices of mesh.partner_pairs (the composition's blended
+// pairs) both of whose fields are listed. A point in h's box lies outside
+// the box of every field not listed, so a vertex whose home field is h
+// samples only h's list while it is in h's box: the same composed field,
+// bit for bit (same order, so unions tie the same way), for a fraction of
+// the fields (human-addon: 53 fields).
+struct FieldNeighbourhoods {
+  static constexpr int kPartner = 1 << 16;  // entry = field | kPartner
+  static constexpr int kFieldMask = kPartner - 1;
+  std::vector<int> offsets;       // #fields + 1, into entries
+  std::vector<int> entries;       // field index, | kPartner
+  std::vector<int> pair_offsets;  // #fields + 1, into pairs
+  std::vector<int> pairs;         // indices of mesh.partner_pairs
+  // Mean number of fields listed per field.
+  double meanListed() const;
+};
+// to_bone: #fields model -> bone transforms at the pose (fieldTransforms);
+// partners: activePartners at the same pose (may be empty: none).
+FieldNeighbourhoods fieldNeighbourhoods(
+    const TrackingMesh& mesh, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<int>& partners);
+
+// Whether the posed support boxes of grids a and b (through their model ->
+// bone transforms) meet, by separating axes; each box is first grown by
+// `margin` of its size per side so that rounding never separates boxes
+// that touch.
+bool posedBoxesMeet(const FieldGrid& a, const Eigen::Affine3f& a_to_bone,
+                    const FieldGrid& b, const Eigen::Affine3f& b_to_bone,
+                    float margin = 1e-3f);
+
 // A vertex's home field sample and the largest sample of the other parts'
 // fields (not the home field, not its partners in `partners`, an
 // activePartners list; null: none), from the #fields samples at a point
@@ -244,8 +279,16 @@ class CpuSurfaceTracking {
   TransformList skinning_;
   Matrix3Xf positions_, scratch_, fallback_normals_, normals_;
   std::vector<TrackState> states_;
-  std::vector<int> partners_;  // activePartners of the frame's pose
-  Matrix4Xf prev_;             // previous unit gradient, w = 1 when set
+  std::vector<int> partners_;           // activePartners of the frame's pose
+  FieldNeighbourhoods neighbourhoods_;  // of the frame's pose
+  // The composed field at x for vertex v (its neighbourhood's fields when x
+  // is in its home field's box); per_field: #fields samples, 0 where
+  // not sampled.
+  // home (when not null) receives homeSamples with the frame's partners.
+  Eigen::Vector4f sampleAt(const ComposedFieldSampler& sampler, int v,
+                           const Eigen::Vector3f& x, Eigen::Vector4f* per_field,
+                           HomeSamples* home) const;
+  Matrix4Xf prev_;  // previous unit gradient, w = 1 when set
   std::vector<float> beta_, beta_scratch_;
   TrackingStageTimes times_;
 };

@@ -448,8 +448,8 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
     if (!skinning[j].matrix().allFinite())
       invalid("skinning transform " + std::to_string(j) + " is not finite");
   // The reference's own transforms, so that both paths sample alike.
-  const std::vector<Eigen::Affine3f> to_bone =
-      fieldTransforms(layout_, skinning);
+  posed_to_bone_ = fieldTransforms(layout_, skinning);
+  const std::vector<Eigen::Affine3f>& to_bone = posed_to_bone_;
   const std::vector<Eigen::Vector4f> spheres =
       posedFieldSpheres(layout_, to_bone);
   for (int i = 0; i < field_count_; ++i) {

@@ -71,11 +71,18 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     rules_ = uploadReadOnly(ctx, rules, &bytes_);
     home_fields_ = uploadReadOnly(ctx, mesh.home_field, &bytes_);
     home_margins_ = uploadReadOnly(ctx, mesh.home_margin, &bytes_);
-    partners_ =
-        cl::Buffer(ctx, CL_MEM_READ_ONLY,
-                   std::max<size_t>(1, static_cast<size_t>(mesh.field_count) *
-                                           TrackingMesh::kMaxPartners) *
-                       sizeof(int));
+    const size_t fields = static_cast<size_t>(mesh.field_count);
+    auto int_buffer = [&](size_t count) {
+      bytes_ += std::max<size_t>(count, 1) * sizeof(int);
+      return cl::Buffer(ctx, CL_MEM_READ_ONLY,
+                        std::max<size_t>(count, 1) * sizeof(int));
+    };
+    partners_ = int_buffer(fields * TrackingMesh::kMaxPartners);
+    // Worst cases: every field in every neighbourhood, every pair too.
+    neighbour_offsets_ = int_buffer(fields + 1);
+    neighbour_entries_ = int_buffer(fields * fields);
+    neighbour_pair_offsets_ = int_buffer(fields + 1);
+    neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
     ring_offsets_ = uploadReadOnly(ctx, mesh.rings.offsets, &bytes_);
     ring_neighbours_ = uploadReadOnly(ctx, mesh.rings.neighbours, &bytes_);
     ring_weights_ = uploadReadOnly(ctx, mesh.relaxation.weights, &bytes_);
@@ -149,7 +156,11 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
   kernel.setArg(first_index, home_fields_);
   kernel.setArg(first_index + 1, home_margins_);
   kernel.setArg(first_index + 2, partners_);
-  kernel.setArg(first_index + 3, cl_float4{{options_.home_contact ? 1.f : 0.f,
+  kernel.setArg(first_index + 3, neighbour_offsets_);
+  kernel.setArg(first_index + 4, neighbour_entries_);
+  kernel.setArg(first_index + 5, neighbour_pair_offsets_);
+  kernel.setArg(first_index + 6, neighbour_pairs_);
+  kernel.setArg(first_index + 7, cl_float4{{options_.home_contact ? 1.f : 0.f,
                                             options_.contact_gap, 0.f, 0.f}});
 }
 
@@ -167,11 +178,20 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     fields_->setPose(skinning);  // validates the pose
     // Kept in a member: the non-blocking write reads it until it is done.
     partners_staging_ = activePartners(*mesh_, skinning);
-    if (!partners_staging_.empty()) {
-      context_->queue().enqueueWriteBuffer(
-          partners_, CL_FALSE, 0, partners_staging_.size() * sizeof(int),
-          partners_staging_.data());
-    }
+    neighbourhoods_ = fieldNeighbourhoods(
+        *mesh_, fields_->layout(), fields_->posedToBone(), partners_staging_);
+    // Non-blocking writes: the staging vectors are members, kept until the
+    // next begin() (after this frame's finish).
+    auto write = [&](const cl::Buffer& buffer, const std::vector<int>& v) {
+      if (!v.empty())
+        context_->queue().enqueueWriteBuffer(buffer, CL_FALSE, 0,
+                                             v.size() * sizeof(int), v.data());
+    };
+    write(partners_, partners_staging_);
+    write(neighbour_offsets_, neighbourhoods_.offsets);
+    write(neighbour_entries_, neighbourhoods_.entries);
+    write(neighbour_pair_offsets_, neighbourhoods_.pair_offsets);
+    write(neighbour_pairs_, neighbourhoods_.pairs);
     times_ = {};
     events_.clear();
     current_ = 0;
@@ -208,8 +228,8 @@ void ClSurfaceTracking::project(int steps) {
                                   options_.tolerance, max_step}});
     project_.setArg(7, min_gradient);
     setContactArgs(project_, 8);
-    fields_->setFieldArgs(project_, 12);
-    fields_->setCompositionArgs(project_, 16);
+    fields_->setFieldArgs(project_, 16);
+    fields_->setCompositionArgs(project_, 20);
     launch(project_, kProjection);
   } catch (const cl::Error& e) {
     throwClError(
@@ -230,8 +250,8 @@ void ClSurfaceTracking::relax() {
     relax_.setArg(8, ring_neighbours_);
     relax_.setArg(9, ring_weights_);
     setContactArgs(relax_, 10);
-    fields_->setFieldArgs(relax_, 14);
-    fields_->setCompositionArgs(relax_, 18);
+    fields_->setFieldArgs(relax_, 18);
+    fields_->setCompositionArgs(relax_, 22);
     launch(relax_, kRelaxation);
     current_ = 1 - current_;
   } catch (const cl::Error& e) {

@@ -118,6 +118,12 @@ class ClFieldEvaluation {
   // kParamStride float4 per field (fields.cl's layout), the last setPose's.
   const cl::Buffer& fieldParams() const { return params_; }
 
+  // The grids without their nodes (joints, frames, boxes), and each
+  // field's model -> bone transform at the last setPose.
+  const FieldGridSet& layout() const { return layout_; }
+  const std::vector<Eigen::Affine3f>& posedToBone() const {
+    return posed_to_bone_;
+  }
   int fieldCount() const { return field_count_; }
   // Blend and bulge pairs evaluated per point, operator tables uploaded.
   int pairCount() const { return pair_count_; }
@@ -167,6 +173,7 @@ class ClFieldEvaluation {
   int pair_count_ = 0, table_count_ = 0, table_resolution_ = 2;
   size_t operator_bytes_ = 0, composition_bytes_ = 0;
   std::vector<float> params_staging_;  // read by non-blocking writes
+  std::vector<Eigen::Affine3f> posed_to_bone_;
   cl::Buffer points_, composed_, per_field_, dummy_;
   size_t points_bytes_ = 0, composed_bytes_ = 0, per_field_bytes_ = 0;
   size_t field_bytes_ = 0;

@@ -78,7 +78,7 @@ class ClSurfaceTracking {
   void launch(cl::Kernel& kernel, Stage stage);
   void addTime(Stage stage, double ms);
   void collectTimes();
-  // Binds kernels/tracking.cl's ISK_CONTACT_PARAMS from first_index on.
+  // Binds kernels/tracking.cl's ISK_TRACKING_PARAMS from first_index on.
   void setContactArgs(cl::Kernel& kernel, cl_uint first_index) const;
   void readFloats(const cl::Buffer& buffer, void* out, size_t bytes,
                   const char* what);
@@ -87,14 +87,17 @@ class ClSurfaceTracking {
   std::shared_ptr<ClContext> context_;
   SurfaceTrackingOptions options_;
   const TrackingMesh* mesh_;
-  std::vector<int> partners_staging_;  // activePartners of the last pose
+  std::vector<int> partners_staging_;   // activePartners of the last pose
+  FieldNeighbourhoods neighbourhoods_;  // of the last pose (staging)
   int vertex_count_ = 0;
   float diagonal_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
-      home_margins_, partners_, ring_offsets_, ring_neighbours_, ring_weights_,
-      ring_lengths_, triangles_, normal_offsets_, normal_triangles_;
+      home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
+      neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
+      ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
+      normal_offsets_, normal_triangles_;
   cl::Buffer positions_[2];
   int current_ = 0;
   cl::Buffer states_, prev_gradients_, beta_[2], normals_;
