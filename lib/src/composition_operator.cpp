@@ -1,6 +1,7 @@
 #include "isk/composition_operator.hpp"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -152,6 +153,26 @@ ThetaController sampledController(double (*theta)(double alpha,
   return c;
 }
 
+// `count` zeroed floats in `nodes`, on transparent huge pages where the
+// kernel offers them on request (THP "madvise"): a table is 32 MiB, and
+// faulting it in 4 KiB pages costs more than reading or baking it on some
+// virtual machines (about 90 ms against 9 ms measured on this one).
+void allocateNodes(std::vector<float>& nodes, size_t count) {
+  nodes.clear();
+  nodes.shrink_to_fit();
+  nodes.reserve(count);  // large: mapped, not yet touched
+#ifdef MADV_HUGEPAGE
+  constexpr uintptr_t kHuge = uintptr_t{1} << 21;
+  const uintptr_t begin = reinterpret_cast<uintptr_t>(nodes.data());
+  const uintptr_t end = begin + count * sizeof(float);
+  const uintptr_t first = (begin + kHuge - 1) & ~(kHuge - 1);
+  const uintptr_t last = end & ~(kHuge - 1);
+  if (last > first)
+    ::madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+#endif
+  nodes.resize(count, 0.f);
+}
+
 }  // namespace
 
 const char* compositionOperatorName(CompositionOperator op) {
@@ -297,7 +318,7 @@ OperatorTable bakeOperatorTable(CompositionOperator op, int resolution,
   table.op = op;
   table.resolution = resolution;
   const size_t n = static_cast<size_t>(resolution);
-  table.nodes.assign(4 * n * n * n, 0.f);
+  allocateNodes(table.nodes, 4 * n * n * n);
   const double last = resolution - 1;
   // One theta slice per work item.
   detail::parallelFor(
@@ -545,7 +566,7 @@ bool loadOperatorTable(const std::string& path, CompositionOperator op,
   OperatorTable loaded;
   loaded.op = op;
   loaded.resolution = resolution;
-  loaded.nodes.resize(floats);
+  allocateNodes(loaded.nodes, floats);
   if (!in.read(reinterpret_cast<char*>(loaded.nodes.data()),
                static_cast<std::streamsize>(floats * sizeof(float))))
     return fail("cannot read the nodes of '" + path + "'");
