@@ -52,8 +52,9 @@
 namespace isk::bench {
 namespace {
 
-// Minimum time per benchmark: the Implicit family takes about 2 minutes on 2
-// CPU cores (CesiumMan-x64: 13 to 20 frames per backend).
+// Minimum time per benchmark: on 2 CPU cores the Implicit family takes about
+// 2.5 minutes (CesiumMan-x64: about 8 to 15 frames per backend, the 113k
+// human-addon-x16 3 to 7), the Scaling family about 1 minute.
 constexpr double kMinTimeS = 2.0;
 constexpr double kScalingMinTimeS = 1.0;
 

@@ -861,6 +861,13 @@ def render(data, command_text, elapsed=None):
     return "\n".join(lines).rstrip() + "\n"
 
 
+def shown_path(path):
+    """A path relative to the repository when inside it, else absolute."""
+    path = os.path.abspath(path)
+    inside = os.path.commonpath([path, REPO]) == REPO
+    return os.path.relpath(path, REPO) if inside else path
+
+
 def main():
     parser = argparse.ArgumentParser(
         description="Run isk_bench and write BENCHMARKS.md from its JSON.")
@@ -893,17 +900,17 @@ def main():
         script = ["python3", "bench/run_benchmarks.py"]
         if os.path.abspath(args.bench) != os.path.join(REPO, "build", "bench",
                                                       "isk_bench"):
-            script += ["--bench", os.path.relpath(args.bench, REPO)]
+            script += ["--bench", shown_path(args.bench)]
         if args.filter:
             script += ["--filter", args.filter]
         if args.min_time is not None:
             script += ["--min-time", str(args.min_time)]
         if args.bench_args:
             script += ["--"] + args.bench_args
-        shown = [os.path.relpath(command[0], REPO)] + [
+        shown = [shown_path(command[0])] + [
             re.sub(r"^(--benchmark_out=)(/.*)$",
-                   lambda m: m.group(1) + os.path.relpath(m.group(2), REPO),
-                   c) for c in command[1:]]
+                   lambda m: m.group(1) + shown_path(m.group(2)), c)
+            for c in command[1:]]
         command_text = (shlex.join(script) + "\n# which runs:\n"
                         + shlex.join(shown))
     with open(json_path) as f:
