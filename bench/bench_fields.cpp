@@ -204,7 +204,7 @@ void registerFieldBenchmarks() {
       if (threads == all && all == 1) continue;
       // One run of a subdivided model takes seconds: all threads only.
       if (model.subdivision_levels > 0 && threads != all) continue;
-      benchmark::RegisterBenchmark(
+      registerGuarded(
           ("FieldBuild/" + model.name + "/threads:" + std::to_string(threads))
               .c_str(),
           buildFields, model, threads)
@@ -221,14 +221,14 @@ void registerFieldBenchmarks() {
             : std::string("FieldCompose/") + compositionOperatorName(op) + "/";
     for (const Model& model : models()) {
       if (!available(model)) continue;
-      benchmark::RegisterBenchmark((group + "reference/" + model.name).c_str(),
-                                   evaluateReference, model, op)
+      registerGuarded((group + "reference/" + model.name).c_str(),
+                      evaluateReference, model, op)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
       for (const ClDeviceInfo& device : devices())
         for (FieldStorage storage :
              {FieldStorage::kBuffer, FieldStorage::kImage})
-          benchmark::RegisterBenchmark(
+          registerGuarded(
               (group +
                onDevice(std::string("opencl-") + fieldStorageName(storage),
                         device.index) +

@@ -221,22 +221,19 @@ void implicitReference(benchmark::State& state, const Case& c) {
 void registerCase(const std::string& prefix, const Case& c, bool reference,
                   const std::string& implicit_backend, double min_time) {
   for (const ClDeviceInfo& device : devices()) {
-    benchmark::RegisterBenchmark(
-        (prefix + onDevice(implicit_backend, device.index)).c_str(),
-        implicitOpenCl, c, device.index)
+    registerGuarded((prefix + onDevice(implicit_backend, device.index)).c_str(),
+                    implicitOpenCl, c, device.index)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->MinTime(min_time);
-    benchmark::RegisterBenchmark(
-        (prefix + onDevice("dqs", device.index)).c_str(), dqsOpenCl, c,
-        device.index)
+    registerGuarded((prefix + onDevice("dqs", device.index)).c_str(), dqsOpenCl,
+                    c, device.index)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->MinTime(min_time);
   }
   if (reference)
-    benchmark::RegisterBenchmark((prefix + "reference").c_str(),
-                                 implicitReference, c)
+    registerGuarded((prefix + "reference").c_str(), implicitReference, c)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->MinTime(min_time);

@@ -139,12 +139,11 @@ void registerPrecomputeBenchmarks() {
        {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
     const std::string prefix =
         std::string("OperatorTable/") + compositionOperatorName(op) + "/";
-    benchmark::RegisterBenchmark((prefix + "bake").c_str(), bakeTable, op)
+    registerGuarded((prefix + "bake").c_str(), bakeTable, op)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->Iterations(3);
-    benchmark::RegisterBenchmark((prefix + "cached-load").c_str(), loadTable,
-                                 op)
+    registerGuarded((prefix + "cached-load").c_str(), loadTable, op)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->Iterations(10);
@@ -152,21 +151,18 @@ void registerPrecomputeBenchmarks() {
   for (const std::string& kernel : embeddedKernelNames()) {
     for (const ClDeviceInfo& device : devices()) {
       const std::string prefix = "ProgramBuild/" + kernel + "/";
-      benchmark::RegisterBenchmark(
-          (prefix + onDevice("cold", device.index)).c_str(), buildProgram,
-          kernel, device.index, BuildMode::kCold)
+      registerGuarded((prefix + onDevice("cold", device.index)).c_str(),
+                      buildProgram, kernel, device.index, BuildMode::kCold)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime()
           ->Iterations(2);
-      benchmark::RegisterBenchmark(
-          (prefix + onDevice("warm", device.index)).c_str(), buildProgram,
-          kernel, device.index, BuildMode::kWarm)
+      registerGuarded((prefix + onDevice("warm", device.index)).c_str(),
+                      buildProgram, kernel, device.index, BuildMode::kWarm)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime()
           ->Iterations(3);
-      benchmark::RegisterBenchmark(
-          (prefix + onDevice("in-process", device.index)).c_str(), buildProgram,
-          kernel, device.index, BuildMode::kInProcess)
+      registerGuarded((prefix + onDevice("in-process", device.index)).c_str(),
+                      buildProgram, kernel, device.index, BuildMode::kInProcess)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime()
           ->MinTime(0.1);

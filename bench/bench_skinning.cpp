@@ -76,14 +76,14 @@ void registerSkinningBenchmarks() {
          {SkinningMethod::kLinearBlend, SkinningMethod::kDualQuaternion}) {
       const std::string suffix = model.name + "/" + skinningMethodName(method);
       for (const ClDeviceInfo& device : devices())
-        benchmark::RegisterBenchmark(
+        registerGuarded(
             ("Frame/" + onDevice("opencl", device.index) + "/" + suffix)
                 .c_str(),
             skinOpenCl, model, device.index, method)
             ->Unit(benchmark::kMillisecond)
             ->UseRealTime();
-      benchmark::RegisterBenchmark(("Frame/reference/" + suffix).c_str(),
-                                   skinReference, model, method)
+      registerGuarded(("Frame/reference/" + suffix).c_str(), skinReference,
+                      model, method)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
     }

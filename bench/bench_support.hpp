@@ -11,6 +11,9 @@
 //   other).
 #pragma once
 
+#include <benchmark/benchmark.h>
+
+#include <exception>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,6 +61,23 @@ TransformList zigzagPose(const Rig& rig, int64_t frame);
 
 // The i-th of a sequence of numbers spread over [0, 1) (golden ratio).
 double spread(int64_t i);
+
+// benchmark::RegisterBenchmark(name, fn, args...) with fn(state, args...)
+// run inside a try block: an exception (a kernel that fails to build on one
+// device, a model that fails to load) skips that benchmark with its message
+// instead of ending the whole suite.
+template <class Fn, class... Args>
+benchmark::internal::Benchmark* registerGuarded(const std::string& name, Fn fn,
+                                                Args... args) {
+  return benchmark::RegisterBenchmark(name.c_str(),
+                                      [fn, args...](benchmark::State& state) {
+                                        try {
+                                          fn(state, args...);
+                                        } catch (const std::exception& e) {
+                                          state.SkipWithError(e.what());
+                                        }
+                                      });
+}
 
 void registerSkinningBenchmarks();
 void registerFieldBenchmarks();

@@ -840,8 +840,14 @@ def failed_section(results):
     if not results.failed:
         return []
     lines = ["## Benchmarks that reported an error", ""]
+    def cell(text):
+        # One line, no table breaks; long build logs cut.
+        text = " ".join(text.split()).replace("|", "\\|")
+        return text if len(text) <= 300 else text[:300] + " ..."
+
     lines += table(["benchmark", "error"],
-                   [[n, e] for n, e in results.failed], ["l", "l"])
+                   [[cell(n), cell(e)] for n, e in results.failed],
+                   ["l", "l"])
     return lines
 
 

@@ -113,9 +113,12 @@ class Render(unittest.TestCase):
 
     def test_failed_runs_are_listed(self):
         failed = run("Implicit/M/opencl:0", 1.0)
-        failed.update(error_occurred=True, error_message="boom")
+        failed.update(error_occurred=True,
+                      error_message="boom | in\nkernel " + "x" * 400)
         text = run_benchmarks.render(document([failed]), "cmd")
-        self.assertIn("boom", text)
+        row = next(l for l in text.splitlines() if "boom" in l)
+        self.assertIn("boom \\| in kernel x", row)
+        self.assertTrue(row.endswith(" ... |"), row)
 
 
 if __name__ == "__main__":
