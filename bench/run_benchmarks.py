@@ -421,12 +421,19 @@ def models_section(results):
              "and human-addon subdivided 1-to-4 (`isk::subdivideRig`, skin "
              "weights interpolated; '-xN' is N times the faces). Vertex "
              "counts are after Assimp's vertex split; texture seams stay "
-             "split, so a level multiplies the vertices by somewhat less "
-             "than 4. Joints: joints with skin weights.", ""]
-    rows = [[m, count(counts[m].get("vertices")),
-             count(counts[m].get("joints"))]
-            for m in ordered(counts, model_order(results))]
-    lines += table(["model", "vertices", "joints"], rows)
+             "split, so the vertices do not grow exactly with the faces (last "
+             "column). Joints: joints with skin weights.", ""]
+    rows = []
+    for m in ordered(counts, model_order(results)):
+        v = counts[m].get("vertices")
+        parent = re.fullmatch(r"(.+)-x\d+", m)
+        base_v = counts.get(parent.group(1), {}).get("vertices") if parent \
+            else None
+        rows.append([m, count(v), count(counts[m].get("joints")),
+                     f"{v / base_v:.1f}x {parent.group(1)}"
+                     if v and base_v else ""])
+    lines += table(["model", "vertices", "joints", "vertices / original"],
+                   rows)
     base = counts.get("human-addon", {}).get("vertices")
     subdivided = [(m, counts[m].get("vertices")) for m in counts
                   if m.startswith("human-addon-x") and counts[m].get(
@@ -622,13 +629,29 @@ def scaling_section(results):
     if not fam:
         return lines + ["Not run (no `Scaling/` benchmark in this JSON).",
                         ""]
+    def spread_of(series, counter, digits_format):
+        values = sorted({int(r[counter]) for k, r in fam.items()
+                         if len(k) >= 4 and k[1] == series and counter in r})
+        if not values:
+            return "n/a"
+        if values[0] == values[-1]:
+            return digits_format(values[0])
+        return (f"{digits_format(values[0])} to "
+                f"{digits_format(values[-1])}")
+
     lines += ["Procedural closed cylinders (`isk::makeCylinderRig`: bones "
               "of length 3, radius 1, nearly square triangles), every inner "
               "joint bent 30 to 50 degrees alternately up and down (a "
-              "zigzag), implicit skinning (`isk::ImplicitSkinner`) and DQS "
-              "(`isk::ClSkinning`) per frame on each device, same frame and "
-              "counters as above. First series: 4 bones, vertex count "
-              "varied; second: about 40k vertices, bone count varied.", ""]
+              "zigzag; `bench/bench_support.cpp`), implicit skinning "
+              "(`isk::ImplicitSkinner`) and DQS (`isk::ClSkinning`) per "
+              "frame on each device, same frame and counters as above. "
+              "Vertex series: "
+              + spread_of("vertices", "joints", str) + " bones, "
+              + spread_of("vertices", "vertices", lambda v: f"{v:,}")
+              + " vertices; bone series: "
+              + spread_of("joints", "joints", str) + " bones, "
+              + spread_of("joints", "vertices", lambda v: f"{v:,}")
+              + " vertices.", ""]
     for series, title, first in (("vertices", "Vertex count", "target"),
                                  ("joints", "Bone count", "bones")):
         runs = {}
