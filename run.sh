@@ -4,6 +4,8 @@
 #   ./run.sh test   install what is missing, build, run the whole test suite
 #   ./run.sh build  install what is missing and build only
 #   ./run.sh bench  build, then run the benchmarks (arguments go to isk_bench)
+#   ./run.sh benchmarks  build, run the whole suite, write BENCHMARKS.md
+#                   (arguments go to bench/run_benchmarks.py)
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -56,8 +58,13 @@ case "${1:-}" in
     shift
     "$BUILD_DIR/bench/isk_bench" "$@"
     ;;
+  benchmarks)
+    build
+    shift
+    python3 bench/run_benchmarks.py --bench "$BUILD_DIR/bench/isk_bench" "$@"
+    ;;
   *)
-    echo "usage: $0 demo|test|build|bench [args]" >&2
+    echo "usage: $0 demo|test|build|bench|benchmarks [args]" >&2
     exit 2
     ;;
 esac

@@ -12,11 +12,12 @@
 // per joint on top of the union). The counter fields_per_point is the broad
 // phase's average number of fields sampled per point (of `fields`).
 //
-// OperatorTable: baking one 128^3 operator table on every hardware thread.
+//   FieldBuild/<model>/threads:<n>        (subdivided models: all threads only)
+//   FieldEval/reference/<model>, FieldEval/opencl-<buffer|image>:<d>/<model>
+//   FieldCompose/<blend|bulge>/<backend as FieldEval>/<model>
 //
 //   isk_bench --benchmark_filter='FieldBuild'
 //   isk_bench --benchmark_filter='FieldEval|FieldCompose'
-//   isk_bench --benchmark_filter='OperatorTable'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -48,6 +49,7 @@ void buildFields(benchmark::State& state, const Model& model, int threads) {
     sum.sampling_ms += built.times.sampling_ms;
     sum.fitting_ms += built.times.fitting_ms;
     sum.baking_ms += built.times.baking_ms;
+    sum.operators_ms += built.times.operators_ms;
     sum.iso_ms += built.times.iso_ms;
     bytes = built.grids.bytes();
     fields = built.grids.fieldCount();
@@ -55,13 +57,14 @@ void buildFields(benchmark::State& state, const Model& model, int threads) {
   }
   const double n = static_cast<double>(std::max<int64_t>(runs, 1));
   state.counters["vertices"] = rig.mesh.vertexCount();
-  state.counters["joints"] = rig.skeleton.jointCount();
+  state.counters["joints"] = rig.skeleton.skinJointCount();
   state.counters["fields"] = fields;
   state.counters["field_MiB"] = bytes / (1024.0 * 1024.0);
   state.counters["partition_ms"] = sum.partition_ms / n;
   state.counters["sampling_ms"] = sum.sampling_ms / n;
   state.counters["fitting_ms"] = sum.fitting_ms / n;
   state.counters["baking_ms"] = sum.baking_ms / n;
+  state.counters["operators_ms"] = sum.operators_ms / n;
   state.counters["iso_ms"] = sum.iso_ms / n;
   state.SetLabel(std::to_string(threads) + " thread(s)");
 }
@@ -148,13 +151,13 @@ void evaluateReference(benchmark::State& state, const Model& model,
   state.SetLabel("CPU reference, 1 thread");
 }
 
-void evaluateOpenCl(benchmark::State& state, const Model& model,
+void evaluateOpenCl(benchmark::State& state, const Model& model, int device,
                     FieldStorage storage, CompositionOperator op) {
   const ImplicitFields& fields = fieldsOf(model);
   const PosedFrames& frames = framesOf(model);
   const Rig& rig = rigOf(model);
   ClFieldEvaluation evaluation(
-      context(), fields.grids, rig.skeleton.jointCount(), storage,
+      context(device), fields.grids, rig.skeleton.jointCount(), storage,
       op == CompositionOperator::kUnion ? nullptr : &compositionOf(model, op));
   if (evaluation.storage() != storage) {
     state.SkipWithError(
@@ -164,7 +167,7 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
   // The points stay on the device, as the skinning kernel leaves them.
   std::vector<cl::Buffer> points;
   for (const Matrix3Xf& p : frames.positions)
-    points.emplace_back(context()->context(),
+    points.emplace_back(context(device)->context(),
                         CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                         p.size() * sizeof(float), const_cast<float*>(p.data()));
   // PoCL compiles a kernel at its first launch: keep that out of the loop.
@@ -187,21 +190,7 @@ void evaluateOpenCl(benchmark::State& state, const Model& model,
   state.counters["operator_MiB"] =
       evaluation.operatorBytes() / (1024.0 * 1024.0);
   state.counters["pairs"] = evaluation.pairCount();
-  state.SetLabel(context()->info().describe());
-}
-
-void bakeTable(benchmark::State& state, CompositionOperator op) {
-  size_t bytes = 0;
-  for (auto _ : state) {
-    const OperatorTable table = bakeOperatorTable(op);
-    benchmark::DoNotOptimize(table.nodes.data());
-    bytes = table.bytes();
-  }
-  state.counters["table_MiB"] = bytes / (1024.0 * 1024.0);
-  state.SetLabel(
-      "128^3, " +
-      std::to_string(std::max(1u, std::thread::hardware_concurrency())) +
-      " thread(s)");
+  state.SetLabel(devices()[device].describe());
 }
 
 }  // namespace
@@ -210,10 +199,12 @@ void registerFieldBenchmarks() {
   const int all =
       static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const Model& model : models()) {
-    if (!available(model) || model.subdivision_levels > 0) continue;
+    if (!available(model)) continue;
     for (int threads : {1, all}) {
       if (threads == all && all == 1) continue;
-      benchmark::RegisterBenchmark(
+      // One run of a subdivided model takes seconds: all threads only.
+      if (model.subdivision_levels > 0 && threads != all) continue;
+      registerGuarded(
           ("FieldBuild/" + model.name + "/threads:" + std::to_string(threads))
               .c_str(),
           buildFields, model, threads)
@@ -230,27 +221,24 @@ void registerFieldBenchmarks() {
             : std::string("FieldCompose/") + compositionOperatorName(op) + "/";
     for (const Model& model : models()) {
       if (!available(model)) continue;
-      benchmark::RegisterBenchmark((group + "reference/" + model.name).c_str(),
-                                   evaluateReference, model, op)
+      registerGuarded((group + "reference/" + model.name).c_str(),
+                      evaluateReference, model, op)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
-      for (FieldStorage storage : {FieldStorage::kBuffer, FieldStorage::kImage})
-        benchmark::RegisterBenchmark(
-            (group + "opencl-" + fieldStorageName(storage) + "/" + model.name)
-                .c_str(),
-            evaluateOpenCl, model, storage, op)
-            ->Unit(benchmark::kMillisecond)
-            ->UseRealTime();
+      for (const ClDeviceInfo& device : devices())
+        for (FieldStorage storage :
+             {FieldStorage::kBuffer, FieldStorage::kImage})
+          registerGuarded(
+              (group +
+               onDevice(std::string("opencl-") + fieldStorageName(storage),
+                        device.index) +
+               "/" + model.name)
+                  .c_str(),
+              evaluateOpenCl, model, device.index, storage, op)
+              ->Unit(benchmark::kMillisecond)
+              ->UseRealTime();
     }
   }
-  for (const CompositionOperator op :
-       {CompositionOperator::kBlend, CompositionOperator::kBulge})
-    benchmark::RegisterBenchmark(
-        (std::string("OperatorTable/") + compositionOperatorName(op)).c_str(),
-        bakeTable, op)
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime()
-        ->Iterations(3);
 }
 
 }  // namespace isk::bench

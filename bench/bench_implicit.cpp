@@ -1,32 +1,45 @@
 // Implicit skinning per frame (Vaillant et al. 2013, surface tracking of
 // section 5) against DQS on the same device and against the single-thread
-// CPU reference, on the shared assets and on CesiumMan subdivided to about
-// 40k and 150k vertices (the paper's Table 1 has a 31,750-vertex hand and
-// the 172,974-vertex Armadillo).
+// CPU reference, on the shared assets and on CesiumMan and human-addon
+// subdivided (the paper's Table 1 has a 31,750-vertex hand and the
+// 172,974-vertex Armadillo); and a scaling series on procedural cylinders.
 //
-// Implicit/<model>/opencl: a frame = pose from the clip -> ImplicitSkinner::
-// run (upload, DQS, projection and relaxation rounds, smoothing, normals) ->
-// read back positions and normals. Counters give the per-stage times
-// (OpenCL profiling events; readback is host wall time) averaged over
-// iterations, and the vertices stopped at a contact (and at a crease, and
-// lost) per frame, counted with the timer paused.
-// Implicit/<model>/dqs: the same frame with isk::ClSkinning (DQS, normals
+// Implicit/<model>/opencl:<d>: a frame = pose from the clip -> ImplicitSkinner
+// ::run (upload, DQS, projection and relaxation rounds, smoothing, normals)
+// -> read back positions and normals, on OpenCL device d. Counters give the
+// per-stage times (OpenCL profiling events; readback is host wall time)
+// averaged over iterations, the vertices stopped at a contact (and at a
+// crease, and lost) per frame, counted with the timer paused, and the
+// start-up: setup_ms (the skinner's construction from built fields: tracking
+// mesh, uploads, program builds) and first_frame_ms (the first frame, where
+// PoCL compiles each kernel).
+// Implicit/<model>/dqs:<d>: the same frame with isk::ClSkinning (DQS, normals
 // recomputed, reads) on the same device, so that implicit / DQS is a ratio
 // measured in one process.
 // Implicit/<model>/reference: isk::CpuImplicitSkinner (1 thread).
 //
-// The fields (union at every joint, the library's default) are built once
-// per model, outside the timing; PoCL compiles a kernel at its first launch,
-// so one frame runs before the timed loop. Frames are independent (tracking
-// starts from the skinned pose every frame), so the timed frames step through
-// the clip by the golden ratio: the few frames of a large model's run are
-// spread over the whole clip, and the three backends see the same sequence.
+// Scaling/vertices/<target>/{implicit,dqs}:<d>: a 4-bone cylinder (bones of
+// length 3, radius 1) with about 2.5k, 10k, 40k and 160k vertices;
+// Scaling/joints/<bones>/{implicit,dqs}:<d>: cylinders of 2 to 32 bones with
+// about 40k vertices. Every inner joint is bent 30 to 50 degrees, alternately
+// up and down (bench_support.hpp, zigzagPose). Same frame and counters as
+// Implicit/.
+//
+// The fields (the library's default operators) are built once per model,
+// outside the timing; PoCL compiles a kernel at its first launch, so one
+// frame runs before the timed loop. Frames are independent (tracking starts
+// from the skinned pose every frame), so the timed frames step through the
+// clip by the golden ratio: the few frames of a large model's run are spread
+// over the whole clip, and the backends see the same sequence.
 //
 //   isk_bench --benchmark_filter='^Implicit/'
+//   isk_bench --benchmark_filter='^Scaling/'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -39,24 +52,48 @@
 namespace isk::bench {
 namespace {
 
-// Minimum time per benchmark: the whole family takes about 2 minutes on 2 CPU
-// cores (CesiumMan-x64: 13 to 20 frames per backend).
+// Minimum time per benchmark: on 2 CPU cores the Implicit family takes about
+// 2.5 minutes (CesiumMan-x64: about 8 to 15 frames per backend, the 113k
+// human-addon-x16 3 to 7), the Scaling family about 1 minute.
 constexpr double kMinTimeS = 2.0;
+constexpr double kScalingMinTimeS = 1.0;
 
-// The clip frame of the i-th timed frame.
-int64_t spreadFrame(const Rig& rig, int64_t i) {
-  const double golden = 0.6180339887498949;
-  const double x = static_cast<double>(i) * golden;
-  return static_cast<int64_t>((x - std::floor(x)) * clipFrameCount(rig));
+// What one implicit benchmark skins: a rig, its fields and its i-th pose.
+struct Case {
+  std::string name;  // cache key of the fields
+  std::function<const Rig&()> rig;
+  std::function<TransformList(const Rig&, int64_t)> pose;
+};
+
+Case modelCase(const Model& model) {
+  return {"model:" + model.name,
+          [model]() -> const Rig& { return rigOf(model); },
+          [](const Rig& rig, int64_t i) {
+            return poseAt(
+                rig, static_cast<int64_t>(spread(i) * clipFrameCount(rig)));
+          }};
 }
 
-std::shared_ptr<const ImplicitFields> implicitFieldsOf(const Model& model) {
+Case scalingCase(int vertices, int bones) {
+  return {
+      "cylinder:" + std::to_string(vertices) + ":" + std::to_string(bones),
+      [vertices, bones]() -> const Rig& { return scalingRig(vertices, bones); },
+      [](const Rig& rig, int64_t i) { return zigzagPose(rig, i); }};
+}
+
+std::shared_ptr<const ImplicitFields> implicitFieldsOf(const Case& c) {
   static std::map<std::string, std::shared_ptr<const ImplicitFields>> cache;
-  auto& slot = cache[model.name];
+  auto& slot = cache[c.name];
   if (!slot)
     slot = std::make_shared<const ImplicitFields>(
-        buildImplicitFields(rigOf(model), {}));
+        buildImplicitFields(c.rig(), {}));
   return slot;
+}
+
+double msSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now() - start)
+      .count();
 }
 
 struct StageSums {
@@ -88,6 +125,7 @@ void setCounters(benchmark::State& state, const Rig& rig, int64_t frames,
                  const StageSums& t, const CountSums& c) {
   const double n = static_cast<double>(std::max<int64_t>(frames, 1));
   state.counters["vertices"] = rig.mesh.vertexCount();
+  state.counters["joints"] = rig.skeleton.skinJointCount();
   state.counters["tracked"] = c.tracked;
   state.counters["contact"] = c.contact / n;
   state.counters["crease"] = c.crease / n;
@@ -103,17 +141,22 @@ void setCounters(benchmark::State& state, const Rig& rig, int64_t frames,
                                              benchmark::Counter::kIsRate);
 }
 
-void implicitOpenCl(benchmark::State& state, const Model& model) {
-  const Rig& rig = rigOf(model);
-  ImplicitSkinner skinner(context(), rig, implicitFieldsOf(model));
+void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
+  const Rig& rig = c.rig();
+  const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
+  auto start = std::chrono::steady_clock::now();
+  ImplicitSkinner skinner(context(device), rig, fields);
+  const double setup_ms = msSince(start);
+  start = std::chrono::steady_clock::now();
+  skinner.run(c.pose(rig, 0));  // PoCL compiles at the first launch
+  const double first_frame_ms = msSince(start);
   Matrix3Xf positions, normals;
   std::vector<TrackState> states;
-  skinner.run(poseAt(rig, 0));  // PoCL compiles at the first launch
   StageSums times;
   CountSums counts;
   int64_t frame = 0;
   for (auto _ : state) {
-    skinner.run(poseAt(rig, spreadFrame(rig, frame++)));
+    skinner.run(c.pose(rig, frame++));
     skinner.readPositions(positions);
     skinner.readNormals(normals);
     benchmark::DoNotOptimize(positions.data());
@@ -125,20 +168,21 @@ void implicitOpenCl(benchmark::State& state, const Model& model) {
     state.ResumeTiming();
   }
   setCounters(state, rig, frame, times, counts);
-  state.SetLabel(context()->info().describe());
+  state.counters["setup_ms"] = setup_ms;
+  state.counters["first_frame_ms"] = first_frame_ms;
+  state.SetLabel(devices()[device].describe());
 }
 
-void dqsOpenCl(benchmark::State& state, const Model& model) {
-  const Rig& rig = rigOf(model);
-  ClSkinning skinning(context(), rig.mesh, rig.weights,
+void dqsOpenCl(benchmark::State& state, const Case& c, int device) {
+  const Rig& rig = c.rig();
+  ClSkinning skinning(context(device), rig.mesh, rig.weights,
                       rig.skeleton.jointCount());
   Matrix3Xf positions, normals;
-  skinning.run(SkinningMethod::kDualQuaternion, poseAt(rig, 0), true);
+  skinning.run(SkinningMethod::kDualQuaternion, c.pose(rig, 0), true);
   StageSums times;
   int64_t frame = 0;
   for (auto _ : state) {
-    skinning.run(SkinningMethod::kDualQuaternion,
-                 poseAt(rig, spreadFrame(rig, frame++)), true);
+    skinning.run(SkinningMethod::kDualQuaternion, c.pose(rig, frame++), true);
     skinning.readPositions(positions);
     skinning.readNormals(normals);
     benchmark::DoNotOptimize(positions.data());
@@ -150,24 +194,49 @@ void dqsOpenCl(benchmark::State& state, const Model& model) {
     times.readback += t.readback_ms;
   }
   setCounters(state, rig, frame, times, CountSums{});
-  state.SetLabel(context()->info().describe());
+  state.SetLabel(devices()[device].describe());
 }
 
-void implicitReference(benchmark::State& state, const Model& model) {
-  const Rig& rig = rigOf(model);
-  CpuImplicitSkinner skinner(rig, implicitFieldsOf(model));
+void implicitReference(benchmark::State& state, const Case& c) {
+  const Rig& rig = c.rig();
+  const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
+  const auto start = std::chrono::steady_clock::now();
+  CpuImplicitSkinner skinner(rig, fields);
+  const double setup_ms = msSince(start);
   StageSums times;
   CountSums counts;
   int64_t frame = 0;
   for (auto _ : state) {
-    skinner.run(poseAt(rig, spreadFrame(rig, frame++)));
+    skinner.run(c.pose(rig, frame++));
     benchmark::DoNotOptimize(skinner.positions().data());
     benchmark::DoNotOptimize(skinner.normals().data());
     times.add(skinner.lastTimes());
     counts.add(countStates(skinner.tracking().states()), skinner.vertexCount());
   }
   setCounters(state, rig, frame, times, counts);
+  state.counters["setup_ms"] = setup_ms;
   state.SetLabel("CPU reference, 1 thread");
+}
+
+void registerCase(const std::string& prefix, const Case& c, bool reference,
+                  const std::string& implicit_backend, double min_time) {
+  for (const ClDeviceInfo& device : devices()) {
+    registerGuarded((prefix + onDevice(implicit_backend, device.index)).c_str(),
+                    implicitOpenCl, c, device.index)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->MinTime(min_time);
+    registerGuarded((prefix + onDevice("dqs", device.index)).c_str(), dqsOpenCl,
+                    c, device.index)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->MinTime(min_time);
+  }
+  if (reference)
+    registerGuarded((prefix + "reference").c_str(), implicitReference, c)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->MinTime(min_time);
 }
 
 }  // namespace
@@ -175,22 +244,20 @@ void implicitReference(benchmark::State& state, const Model& model) {
 void registerImplicitBenchmarks() {
   for (const Model& model : models()) {
     if (!available(model)) continue;
-    const std::string prefix = "Implicit/" + model.name + "/";
-    benchmark::RegisterBenchmark((prefix + "opencl").c_str(), implicitOpenCl,
-                                 model)
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime()
-        ->MinTime(kMinTimeS);
-    benchmark::RegisterBenchmark((prefix + "dqs").c_str(), dqsOpenCl, model)
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime()
-        ->MinTime(kMinTimeS);
-    benchmark::RegisterBenchmark((prefix + "reference").c_str(),
-                                 implicitReference, model)
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime()
-        ->MinTime(kMinTimeS);
+    registerCase("Implicit/" + model.name + "/", modelCase(model), true,
+                 "opencl", kMinTimeS);
   }
+  constexpr int kFixedBones = 4, kFixedVertices = 40000;
+  const std::pair<int, const char*> sizes[] = {
+      {2500, "2.5k"}, {10000, "10k"}, {40000, "40k"}, {160000, "160k"}};
+  for (const auto& [vertices, label] : sizes)
+    registerCase(std::string("Scaling/vertices/") + label + "/",
+                 scalingCase(vertices, kFixedBones), false, "implicit",
+                 kScalingMinTimeS);
+  for (int bones : {2, 4, 8, 16, 32})
+    registerCase("Scaling/joints/" + std::to_string(bones) + "/",
+                 scalingCase(kFixedVertices, bones), false, "implicit",
+                 kScalingMinTimeS);
 }
 
 }  // namespace isk::bench

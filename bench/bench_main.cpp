@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   isk::bench::registerSkinningBenchmarks();
   isk::bench::registerFieldBenchmarks();
   isk::bench::registerImplicitBenchmarks();
+  isk::bench::registerPrecomputeBenchmarks();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

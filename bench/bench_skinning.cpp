@@ -1,12 +1,14 @@
-// Per-frame geometric skinning (LBS, DQS) on the OpenCL device against the
-// single-thread CPU reference, on the shared assets and on CesiumMan
-// subdivided to about 40k and 150k vertices.
+// Per-frame geometric skinning (LBS, DQS) on every OpenCL device against the
+// single-thread CPU reference, on the shared assets and on CesiumMan and
+// human-addon subdivided.
+//
+//   Frame/opencl:<d>/<model>/<lbs|dqs>, Frame/reference/<model>/<lbs|dqs>
 //
 // A frame = pose from the clip -> upload joint transforms -> skinning kernel
 // -> normals kernel -> read back positions and normals. Counters give the
 // per-stage device times (OpenCL profiling events) averaged over iterations.
 //
-//   isk_bench --benchmark_filter='CesiumMan'    (see bench/README.md)
+//   isk_bench --benchmark_filter='^Frame/'    (README.md, Benchmarks)
 #include <benchmark/benchmark.h>
 
 #include <string>
@@ -18,12 +20,14 @@
 namespace isk::bench {
 namespace {
 
-void skinOpenCl(benchmark::State& state, const Model& model,
+void skinOpenCl(benchmark::State& state, const Model& model, int device,
                 SkinningMethod method) {
   const Rig& rig = rigOf(model);
-  ClSkinning skinning(context(), rig.mesh, rig.weights,
+  ClSkinning skinning(context(device), rig.mesh, rig.weights,
                       rig.skeleton.jointCount());
   Matrix3Xf positions, normals;
+  // PoCL compiles a kernel at its first launch: keep that out of the loop.
+  skinning.run(method, poseAt(rig, 0), true);
   double upload = 0, skin = 0, normal = 0, readback = 0;
   int64_t frame = 0;
   for (auto _ : state) {
@@ -45,7 +49,7 @@ void skinOpenCl(benchmark::State& state, const Model& model,
   state.counters["readback_ms"] = readback / n;
   state.counters["fps"] = benchmark::Counter(static_cast<double>(frame),
                                              benchmark::Counter::kIsRate);
-  state.SetLabel(context()->info().describe());
+  state.SetLabel(devices()[device].describe());
 }
 
 void skinReference(benchmark::State& state, const Model& model,
@@ -71,12 +75,15 @@ void registerSkinningBenchmarks() {
     for (auto method :
          {SkinningMethod::kLinearBlend, SkinningMethod::kDualQuaternion}) {
       const std::string suffix = model.name + "/" + skinningMethodName(method);
-      benchmark::RegisterBenchmark(("Frame/opencl/" + suffix).c_str(),
-                                   skinOpenCl, model, method)
-          ->Unit(benchmark::kMillisecond)
-          ->UseRealTime();
-      benchmark::RegisterBenchmark(("Frame/reference/" + suffix).c_str(),
-                                   skinReference, model, method)
+      for (const ClDeviceInfo& device : devices())
+        registerGuarded(
+            ("Frame/" + onDevice("opencl", device.index) + "/" + suffix)
+                .c_str(),
+            skinOpenCl, model, device.index, method)
+            ->Unit(benchmark::kMillisecond)
+            ->UseRealTime();
+      registerGuarded(("Frame/reference/" + suffix).c_str(), skinReference,
+                      model, method)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
     }

@@ -78,6 +78,16 @@ TEST(ProceduralRigs, UnknownNamesAndBadOptionsAreRefusedWithTheValidNames) {
   CylinderRigOptions bad;
   bad.bones = 0;
   EXPECT_THROW(makeCylinderRig(bad), Error);
+  bad.bones = 65;
+  EXPECT_THROW(makeCylinderRig(bad), Error);
+  // Long chains for the benchmarks' joint-count series.
+  CylinderRigOptions chain;
+  chain.bones = 32;
+  chain.length = 96.f;
+  chain.rings = 200;
+  chain.segments = 16;
+  const Rig rig = makeCylinderRig(chain);
+  EXPECT_EQ(rig.skeleton.skinJointCount(), 32);
 }
 
 TEST(SkinWeights, ListsAreMergedSortedAndNormalized) {

@@ -166,13 +166,13 @@ Rig makeTubeRig(const TubeSpec& spec) {
 }  // namespace
 
 Rig makeCylinderRig(const CylinderRigOptions& options) {
-  if (options.bones < 1 || options.bones > 8 || !(options.radius > 0.f) ||
+  if (options.bones < 1 || options.bones > 64 || !(options.radius > 0.f) ||
       !(options.length > 0.f) || options.rings < 2 || options.segments < 3 ||
       !(options.taper >= 0.f && options.taper < 1.f) ||
       !(options.blend_width > 0.f && options.blend_width <= 0.5f)) {
     throw Error(
         ErrorCode::kInvalidArgument,
-        "makeCylinderRig: need 1-8 bones, positive radius and length, "
+        "makeCylinderRig: need 1-64 bones, positive radius and length, "
         "rings >= 2, segments >= 3, taper in [0, 1), blend width in (0, 0.5]");
   }
   TubeSpec spec;

@@ -9,7 +9,7 @@
 namespace isk {
 
 struct CylinderRigOptions {
-  int bones = 2;       // 1 to 8 bones along +x, equal lengths
+  int bones = 2;       // 1 to 64 bones along +x, equal lengths
   float radius = 1.f;  // model units
   float length = 8.f;  // whole cylinder
   int rings = 64;      // vertex rings along the length

@@ -1,0 +1,125 @@
+#!/usr/bin/env python3
+"""Tests of bench/run_benchmarks.py's markdown on synthetic JSON (standard
+library unittest; run by CTest as BenchmarksScript.Render)."""
+import os
+import sys
+import unittest
+
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import run_benchmarks  # noqa: E402
+
+
+def run(name, real_time_ms, label="", **counters):
+    entry = {"name": name + "/real_time", "run_name": name + "/real_time",
+             "run_type": "iteration", "iterations": 10,
+             "real_time": real_time_ms, "cpu_time": real_time_ms,
+             "time_unit": "ms", "label": label}
+    entry.update(counters)
+    return entry
+
+
+def implicit(model, backend, ms, vertices, **counters):
+    return run(f"Implicit/{model}/{backend}/min_time:2.000", ms,
+               vertices=vertices, joints=19, tracked=vertices, contact=10,
+               crease=1, lost=0, upload_ms=0.01, skinning_ms=0.1,
+               projection_ms=ms / 2, relaxation_ms=ms / 4,
+               smoothing_ms=0.1, normals_ms=0.1, readback_ms=0.1,
+               **counters)
+
+
+def document(benchmarks, devices=(("cpu", "PoCL / cpu"),)):
+    context = {"date": "2026-01-01T00:00:00+00:00", "num_cpus": 2,
+               "host_name": "test", "mhz_per_cpu": 1000, "load_avg": [0.5]}
+    for i, (kind, name) in enumerate(devices):
+        context[f"isk_device_{i}"] = name
+        context[f"isk_device_{i}_type"] = kind
+    return {"context": context, "benchmarks": benchmarks}
+
+
+class Render(unittest.TestCase):
+    def test_empty_json_says_not_run(self):
+        text = run_benchmarks.render(document([], devices=()), "cmd")
+        self.assertIn("No OpenCL device in this run.", text)
+        self.assertIn("Not run", text)
+        self.assertNotIn("nan", text.lower())
+
+    def test_targets_from_the_figures(self):
+        data = document([
+            implicit("human-addon", "opencl:0", 10.0, 7798),   # 100 fps
+            implicit("human-addon", "dqs:0", 0.5, 7798),
+            implicit("human-addon", "reference", 20.0, 7798),
+            implicit("Big", "opencl:0", 40.0, 150000),
+            implicit("Big", "dqs:0", 10.0, 150000),            # 4x: met
+            implicit("Big", "reference", 50.0, 150000),        # 1.25x
+        ])
+        text = run_benchmarks.render(data, "cmd")
+        rows = [l for l in text.splitlines() if l.startswith("| implicit")]
+        human = next(r for r in rows if "human-addon (7,798 v)" in r)
+        self.assertIn("100 fps", human)
+        self.assertTrue(human.endswith("| met |"), human)
+        ratio = next(r for r in rows if "implicit / DQS" in r)
+        self.assertIn("4.0x", ratio)
+        self.assertTrue(ratio.endswith("| met |"), ratio)
+        speedup = next(r for r in rows if "over the 1-thread" in r)
+        self.assertIn("1.25x", speedup)
+        self.assertIn("not met", speedup)
+        gpu = next(r for r in rows if "GPU" in r)
+        self.assertIn("no GPU device in this run", gpu)
+        # The paper's Armadillo sits beside the 150k model.
+        armadillo = next(l for l in text.splitlines()
+                         if l.startswith("| Armadillo"))
+        self.assertIn("| Big |", armadillo)
+        self.assertIn("29.0x", armadillo)
+
+    def test_a_gpu_device_is_measured(self):
+        data = document([implicit("Big", "opencl:1", 2.0, 150000),
+                         implicit("Big", "dqs:1", 1.0, 150000)],
+                        devices=(("cpu", "PoCL / cpu"),
+                                 ("gpu", "Vendor / GPU")))
+        text = run_benchmarks.render(data, "cmd")
+        gpu = next(l for l in text.splitlines()
+                   if l.startswith("| implicit, ~170k vertices, GPU"))
+        self.assertIn("Vendor / GPU", gpu)
+        self.assertIn("500 fps", gpu)
+        self.assertTrue(gpu.endswith("| met |"), gpu)
+        self.assertNotIn("No GPU device", text)
+
+    def test_partial_families_and_google_benchmark_suffixes(self):
+        data = document([
+            run("Frame/opencl:0/M/dqs", 2.0, vertices=1000, upload_ms=0.1,
+                skinning_ms=0.5, normals_ms=0.5, readback_ms=0.1),
+            run("Frame/reference/M/dqs", 4.0, vertices=1000),
+            run("OperatorTable/blend/bake/iterations:3", 400.0, table_MiB=32),
+            run("OperatorTable/blend/cached-load/iterations:10", 20.0,
+                table_MiB=32),
+            run("ProgramBuild/fields/cold:0/iterations:2", 900.0),
+            run("ProgramBuild/fields/warm:0/iterations:3", 25.0),
+            run("Scaling/joints/8/implicit:0/min_time:1.000", 10.0,
+                vertices=40000, joints=8, projection_ms=5, relaxation_ms=2,
+                smoothing_ms=1, normals_ms=0.5, contact=3),
+            run("FieldBuild/M/threads:1", 100.0, vertices=1000, joints=4,
+                fields=4, field_MiB=2),
+        ])
+        text = run_benchmarks.render(data, "cmd")
+        self.assertIn("| M | 1,000 | dqs | 2.000 | 500 | 4.000 | 2.00x", text)
+        self.assertIn("| blend | 32 | 400.0 | 20.00 | 20.0x |", text)
+        self.assertIn("| fields | PoCL / cpu | 900.0 | 25.00 | n/a |", text)
+        self.assertIn("| 8 | 40,000 | 8 | 10.00 |", text)
+        self.assertIn("## Implicit skinning per frame\n\nNot run", text)
+        self.assertIn("### Vertex count: not run", text)
+        # threads:1 is ours, not Google Benchmark's.
+        self.assertIn("| M | 1,000 | 4 | 4 | 2.0 | 100.0 |", text)
+
+    def test_failed_runs_are_listed(self):
+        failed = run("Implicit/M/opencl:0", 1.0)
+        failed.update(error_occurred=True,
+                      error_message="boom | in\nkernel " + "x" * 400)
+        text = run_benchmarks.render(document([failed]), "cmd")
+        row = next(l for l in text.splitlines() if "boom" in l)
+        self.assertIn("boom \\| in kernel x", row)
+        self.assertTrue(row.endswith(" ... |"), row)
+
+
+if __name__ == "__main__":
+    unittest.main()
