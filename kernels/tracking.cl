@@ -124,7 +124,8 @@ __kernel void track_begin(const uint vertex_count,
                           __global const float* iso_values,
                           __global const int* representative,
                           __global uchar* states,
-                          __global float4* prev_gradients) {
+                          __global float4* prev_gradients,
+                          __global float4* relax_frames) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   vstore3(vload3(v, skinned), v, positions);
@@ -132,6 +133,7 @@ __kernel void track_begin(const uint vertex_count,
                   ? TRACK_MARCHING
                   : TRACK_UNTRACKED;
   prev_gradients[v] = (float4)(0.0f);
+  relax_frames[v] = (float4)(0.0f);
 }
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
@@ -144,13 +146,15 @@ __kernel void track_project(const uint vertex_count, __global float* positions,
                             __global float4* prev_gradients, const int steps,
                             const float4 step_params, const float min_gradient,
                             ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
-                            ISK_COMPOSITION_PARAMS) {
+                            ISK_COMPOSITION_PARAMS,
+                            __global float4* relax_frames) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   uchar state = states[v];
   if (state != TRACK_MARCHING) return;  // stopped: no more work this frame
   float3 x = vload3(v, positions);
   float4 prev = prev_gradients[v];
+  float4 frame = relax_frames[v];
   const float iso = iso_values[v];
   const int home_field = home_fields[v];
   const int home = contact_params.x > 0.0f ? home_field : -1;
@@ -189,6 +193,7 @@ __kernel void track_project(const uint vertex_count, __global float* positions,
           break;
         }
         prev.w = 2.0f;
+        frame = (float4)(c, gc / gc_len);  // the contact surface c = 0
         const float length = clamp(-step_params.x * c / gc_len,
                                    -step_params.w, step_params.w);
         x += length * (gc / gc_len);
@@ -208,6 +213,7 @@ __kernel void track_project(const uint vertex_count, __global float* positions,
       state = entered > step_params.z ? TRACK_CREASE : TRACK_CONVERGED;
       break;
     }
+    frame = (float4)(sample.x - iso, unit);
     const float length =
         clamp(step_params.x * d / g_len, -step_params.w, step_params.w);
     x += length * unit;
@@ -215,54 +221,40 @@ __kernel void track_project(const uint vertex_count, __global float* positions,
   vstore3(x, v, positions);
   states[v] = state;
   prev_gradients[v] = prev;
+  relax_frames[v] = frame;
 }
 
 // One tangential relaxation step, positions_in -> positions_out (every
-// vertex is written).
+// vertex is written). The surface the vertex marches to (its iso-surface,
+// or the contact surface while it marches to a contact) is taken as its
+// last projection step sampled it (relax_frames: signed distance, unit
+// normal; zero before any step), so relaxation samples no field.
 __kernel void track_relax(const uint vertex_count,
                           __global const float* positions_in,
                           __global float* positions_out,
-                          __global const float* iso_values,
                           __global const uchar* states,
-                          __global const float4* prev_gradients,
+                          __global const float4* relax_frames,
                           __global const uchar* rules,
                           __global const uint* ring_offsets,
                           __global const int* ring_neighbours,
-                          __global const float* ring_weights,
-                          ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
-                          ISK_COMPOSITION_PARAMS) {
+                          __global const float* ring_weights) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   const float3 x = vload3(v, positions_in);
   float3 out = x;
-  if (states[v] == TRACK_MARCHING && rules[v] != RULE_FIXED) {
-    // The surface the vertex marches to: its iso-surface, or the contact
-    // surface while it marches to a contact.
-    const bool to_contact = prev_gradients[v].w == 2.0f;
-    float4 h, other;
-    const float4 sample =
-        sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, ISK_TRACKING_ARGS,
-                        x, home_fields[v], &h, &other);
-    float distance = sample.x - iso_values[v];
-    float3 normal = sample.yzw;
-    if (to_contact) {
-      distance = other.x - h.x - home_margins[v] + contact_params.y;
-      normal = other.yzw - h.yzw;
-    }
-    const float normal_len = sqrt(normal.x * normal.x + normal.y * normal.y +
-                                  normal.z * normal.z);
-    if (sample.x > 0.0f && normal_len > 0.0f) {
-      const float3 unit = normal / normal_len;
-      const float t = fabs(distance) - 1.0f;
-      const float mu = max(0.0f, 1.0f - t * t * t * t);
-      float3 centroid = (float3)(0.0f);
-      const uint end = ring_offsets[v + 1];
-      for (uint i = ring_offsets[v]; i < end; ++i)
-        centroid += ring_weights[i] * vload3(ring_neighbours[i], positions_in);
-      float3 d = centroid - x;
-      d -= (d.x * unit.x + d.y * unit.y + d.z * unit.z) * unit;
-      out = x + mu * d;
-    }
+  const float4 frame = relax_frames[v];
+  const float3 unit = frame.yzw;
+  if (states[v] == TRACK_MARCHING && rules[v] != RULE_FIXED &&
+      unit.x * unit.x + unit.y * unit.y + unit.z * unit.z > 0.0f) {
+    const float t = fabs(frame.x) - 1.0f;
+    const float mu = max(0.0f, 1.0f - t * t * t * t);
+    float3 centroid = (float3)(0.0f);
+    const uint end = ring_offsets[v + 1];
+    for (uint i = ring_offsets[v]; i < end; ++i)
+      centroid += ring_weights[i] * vload3(ring_neighbours[i], positions_in);
+    float3 d = centroid - x;
+    d -= (d.x * unit.x + d.y * unit.y + d.z * unit.z) * unit;
+    out = x + mu * d;
   }
   vstore3(out, v, positions_out);
 }

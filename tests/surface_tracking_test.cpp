@@ -602,7 +602,16 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
         prev_error = std::max(
             prev_error, (prev.row(v) - cpu.previousGradients().row(v)).norm());
     EXPECT_LT(prev_error, 1e-3f) << "previous gradients";
-    cl.setState(cpu.positions(), cpu.states(), cpu.previousGradients());
+    Matrix4Xf frames;
+    cl.readRelaxFrames(frames);
+    float frame_error = 0;
+    for (Eigen::Index v = 0; v < frames.rows(); ++v)
+      if (states[v] == cpu.states()[v])
+        frame_error = std::max(
+            frame_error, (frames.row(v) - cpu.relaxFrames().row(v)).norm());
+    EXPECT_LT(frame_error, 1e-3f) << "relaxation frames";
+    cl.setState(cpu.positions(), cpu.states(), cpu.previousGradients(),
+                &cpu.relaxFrames());
     cpu.relax();
     cl.relax();
     compare("relaxation");

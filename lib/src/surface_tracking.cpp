@@ -423,6 +423,7 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
   fallback_normals_ = skinned_normals;
   states_.resize(n);
   prev_.setZero(n, 4);
+  relax_frames_.setZero(n, 4);
   for (int v = 0; v < n; ++v)
     states_[v] = mesh_->iso_values[v] > 0 && mesh_->rings.representative[v] == v
                      ? TrackState::kMarching
@@ -433,16 +434,19 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
 
 void CpuSurfaceTracking::setState(const Matrix3Xf& positions,
                                   const std::vector<TrackState>& states,
-                                  const Matrix4Xf& prev_gradients) {
+                                  const Matrix4Xf& prev_gradients,
+                                  const Matrix4Xf* relax_frames) {
   const int n = mesh_->vertexCount();
   if (positions.rows() != n || static_cast<int>(states.size()) != n ||
-      prev_gradients.rows() != n)
+      prev_gradients.rows() != n ||
+      (relax_frames && relax_frames->rows() != n))
     throw Error(ErrorCode::kInvalidArgument,
                 "CpuSurfaceTracking::setState: expected " + std::to_string(n) +
                     " rows");
   positions_ = positions;
   states_ = states;
   prev_ = prev_gradients;
+  if (relax_frames) relax_frames_ = *relax_frames;
 }
 
 Eigen::Vector4f CpuSurfaceTracking::sampleAt(
@@ -523,6 +527,9 @@ void CpuSurfaceTracking::project(int steps) {
             break;
           }
           prev_(v, 3) = 2.f;
+          // The relaxation's surface: the contact surface c = 0.
+          relax_frames_.row(v) << c, gc.x() / gc_len, gc.y() / gc_len,
+              gc.z() / gc_len;
           const float length =
               std::clamp(-options_.sigma * c / gc_len, -max_step, max_step);
           x += length * (gc / gc_len);
@@ -545,6 +552,7 @@ void CpuSurfaceTracking::project(int steps) {
                                                   : TrackState::kConverged;
         break;
       }
+      relax_frames_.row(v) << f - iso, unit.x(), unit.y(), unit.z();
       float length = options_.sigma * d / g_len;  // signed step along unit
       length = std::clamp(length, -max_step, max_step);
       x += length * unit;
@@ -556,33 +564,22 @@ void CpuSurfaceTracking::project(int steps) {
 
 void CpuSurfaceTracking::relax() {
   const auto start = std::chrono::steady_clock::now();
-  const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
   const int n = mesh_->vertexCount();
   scratch_ = positions_;
   const OneRings& rings = mesh_->rings;
   const RelaxationWeights& relaxation = mesh_->relaxation;
-  std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
   for (int v = 0; v < n; ++v) {
     if (states_[v] != TrackState::kMarching ||
         relaxation.rules[v] == RelaxationRule::kFixed)
       continue;
+    // The surface the vertex marches to (its iso-surface, or the contact
+    // surface while it marches to a contact) as its last projection step
+    // sampled it: signed distance and unit normal.
+    const Eigen::Vector4f frame = relax_frames_.row(v).transpose();
+    const Eigen::Vector3f unit = frame.tail<3>();
+    if (!(unit.squaredNorm() > 0.f)) continue;  // no step this frame
     const Eigen::Vector3f x = positions_.row(v).transpose();
-    HomeSamples home;
-    const Eigen::Vector4f sample =
-        sampleAt(sampler, v, x, per_field.data(), &home);
-    // The surface the vertex marches to: its iso-surface, or the contact
-    // surface c = 0 while it marches to a contact.
-    float distance = sample[0] - mesh_->iso_values[v];
-    Eigen::Vector3f normal = sample.tail<3>();
-    if (prev_(v, 3) == 2.f) {
-      distance = home.other[0] - home.home[0] - mesh_->home_margin[v] +
-                 options_.contact_gap;
-      normal = (home.other - home.home).tail<3>();
-    }
-    const float normal_len = normal.norm();
-    if (!(sample[0] > 0.f) || !(normal_len > 0.f)) continue;
-    const Eigen::Vector3f unit = normal / normal_len;
-    const float t = std::abs(distance) - 1.f;
+    const float t = std::abs(frame[0]) - 1.f;
     const float mu = std::max(0.f, 1.f - t * t * t * t);
     Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
     for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)

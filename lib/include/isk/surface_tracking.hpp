@@ -15,7 +15,8 @@
 // it as lost. A stopped vertex does no more work this frame.
 // Relaxation (eq. 5, 6), after each `projection_steps` steps, moves each
 // marching vertex towards the mean-value-weighted centroid of its one-ring,
-// tangentially (in the plane normal to grad f at the vertex):
+// tangentially (in the plane normal to grad f where the vertex's last
+// projection step sampled it, with that step's f: no new field sample):
 //   x <- x + mu T(sum_j w_j x_j - x),  mu = max(0, 1 - (|f - iso| - 1)^4),
 // with the rest pose's weights (isk/one_ring.hpp, RelaxationWeights).
 // Smoothing (eq. 7): beta = 1 on contact vertices, 0 elsewhere; diffused
@@ -260,7 +261,8 @@ class CpuSurfaceTracking {
   // set.
   void setState(const Matrix3Xf& positions,
                 const std::vector<TrackState>& states,
-                const Matrix4Xf& prev_gradients);
+                const Matrix4Xf& prev_gradients,
+                const Matrix4Xf* relax_frames = nullptr);
 
   const Matrix3Xf& positions() const { return positions_; }
   const Matrix3Xf& normals() const { return normals_; }
@@ -268,6 +270,11 @@ class CpuSurfaceTracking {
   // Two per vertex: beta (contacts, eq. 7) and gamma (creases).
   const std::vector<float>& beta() const { return beta_; }
   const Matrix4Xf& previousGradients() const { return prev_; }
+  // #V by 4: the surface each vertex marches to as its last projection step
+  // sampled it (signed distance f - iso, or the contact function c, then
+  // the unit normal; zero before any step): the relaxation's tangent plane
+  // and mu, so that relaxation samples no field.
+  const Matrix4Xf& relaxFrames() const { return relax_frames_; }
   const TrackingStageTimes& lastTimes() const { return times_; }
   const SurfaceTrackingOptions& options() const { return options_; }
 
@@ -289,6 +296,7 @@ class CpuSurfaceTracking {
                            const Eigen::Vector3f& x, Eigen::Vector4f* per_field,
                            HomeSamples* home) const;
   Matrix4Xf prev_;  // previous unit gradient, w = 1 when set
+  Matrix4Xf relax_frames_;  // see relaxFrames()
   std::vector<float> beta_, beta_scratch_;
   TrackingStageTimes times_;
 };

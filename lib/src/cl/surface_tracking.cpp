@@ -99,13 +99,14 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats3);
     states_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n);
     prev_gradients_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n * 4 * sizeof(float));
+    relax_frames_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n * 4 * sizeof(float));
     for (auto& b : beta_)
       b = cl::Buffer(ctx, CL_MEM_READ_WRITE, 2 * n * sizeof(float));
     std::vector<uint8_t> kinds(mesh.rings.kinds.size());
     for (size_t v = 0; v < kinds.size(); ++v)
       kinds[v] = static_cast<uint8_t>(mesh.rings.kinds[v]);
     kinds_ = uploadReadOnly(ctx, kinds, &bytes_);
-    bytes_ += 3 * floats3 + n + n * 4 * sizeof(float) + 4 * n * sizeof(float);
+    bytes_ += 3 * floats3 + n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking: uploading the tracking mesh to " +
                         context_->info().describe());
@@ -204,6 +205,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     begin_.setArg(4, representative_);
     begin_.setArg(5, states_);
     begin_.setArg(6, prev_gradients_);
+    begin_.setArg(7, relax_frames_);
     launch(begin_, kProjection);
   } catch (const cl::Error& e) {
     throwClError(e,
@@ -230,6 +232,7 @@ void ClSurfaceTracking::project(int steps) {
     setContactArgs(project_, 8);
     fields_->setFieldArgs(project_, 16);
     fields_->setCompositionArgs(project_, 20);
+    project_.setArg(26, relax_frames_);
     launch(project_, kProjection);
   } catch (const cl::Error& e) {
     throwClError(
@@ -242,16 +245,12 @@ void ClSurfaceTracking::relax() {
     relax_.setArg(0, static_cast<cl_uint>(vertex_count_));
     relax_.setArg(1, positions_[current_]);
     relax_.setArg(2, positions_[1 - current_]);
-    relax_.setArg(3, iso_values_);
-    relax_.setArg(4, states_);
-    relax_.setArg(5, prev_gradients_);
-    relax_.setArg(6, rules_);
-    relax_.setArg(7, ring_offsets_);
-    relax_.setArg(8, ring_neighbours_);
-    relax_.setArg(9, ring_weights_);
-    setContactArgs(relax_, 10);
-    fields_->setFieldArgs(relax_, 18);
-    fields_->setCompositionArgs(relax_, 22);
+    relax_.setArg(3, states_);
+    relax_.setArg(4, relax_frames_);
+    relax_.setArg(5, rules_);
+    relax_.setArg(6, ring_offsets_);
+    relax_.setArg(7, ring_neighbours_);
+    relax_.setArg(8, ring_weights_);
     launch(relax_, kRelaxation);
     current_ = 1 - current_;
   } catch (const cl::Error& e) {
@@ -356,10 +355,12 @@ void ClSurfaceTracking::run(const TransformList& skinning,
 
 void ClSurfaceTracking::setState(const Matrix3Xf& positions,
                                  const std::vector<TrackState>& states,
-                                 const Matrix4Xf& prev_gradients) {
+                                 const Matrix4Xf& prev_gradients,
+                                 const Matrix4Xf* relax_frames) {
   if (positions.rows() != vertex_count_ ||
       static_cast<int>(states.size()) != vertex_count_ ||
-      prev_gradients.rows() != vertex_count_)
+      prev_gradients.rows() != vertex_count_ ||
+      (relax_frames && relax_frames->rows() != vertex_count_))
     throw Error(ErrorCode::kInvalidArgument,
                 "ClSurfaceTracking::setState: expected " +
                     std::to_string(vertex_count_) + " rows");
@@ -372,6 +373,10 @@ void ClSurfaceTracking::setState(const Matrix3Xf& positions,
     queue.enqueueWriteBuffer(prev_gradients_, CL_TRUE, 0,
                              prev_gradients.size() * sizeof(float),
                              prev_gradients.data());
+    if (relax_frames)
+      queue.enqueueWriteBuffer(relax_frames_, CL_TRUE, 0,
+                               relax_frames->size() * sizeof(float),
+                               relax_frames->data());
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking::setState");
   }
@@ -411,6 +416,12 @@ void ClSurfaceTracking::readPreviousGradients(Matrix4Xf& out) {
   out.resize(vertex_count_, 4);
   readFloats(prev_gradients_, out.data(), out.size() * sizeof(float),
              "readPreviousGradients");
+}
+
+void ClSurfaceTracking::readRelaxFrames(Matrix4Xf& out) {
+  out.resize(vertex_count_, 4);
+  readFloats(relax_frames_, out.data(), out.size() * sizeof(float),
+             "readRelaxFrames");
 }
 
 int ClSurfaceTracking::contactCount() {

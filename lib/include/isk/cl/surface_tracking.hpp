@@ -47,9 +47,11 @@ class ClSurfaceTracking {
 
   // Uploads a working state (tests: both backends from the same input),
   // after a begin() that set the pose.
+  // relax_frames (optional, #V by 4): see CpuSurfaceTracking::relaxFrames.
   void setState(const Matrix3Xf& positions,
                 const std::vector<TrackState>& states,
-                const Matrix4Xf& prev_gradients);
+                const Matrix4Xf& prev_gradients,
+                const Matrix4Xf* relax_frames = nullptr);
 
   // Blocking reads of the working state and of the results.
   void readPositions(Matrix3Xf& out);  // working positions (results after
@@ -58,6 +60,7 @@ class ClSurfaceTracking {
   void readStates(std::vector<TrackState>& out);
   void readBeta(std::vector<float>& out);  // beta, gamma per vertex
   void readPreviousGradients(Matrix4Xf& out);
+  void readRelaxFrames(Matrix4Xf& out);
   // Vertices stopped at a contact in the last frame (a blocking read of the
   // states).
   int contactCount();
@@ -100,7 +103,7 @@ class ClSurfaceTracking {
       normal_offsets_, normal_triangles_;
   cl::Buffer positions_[2];
   int current_ = 0;
-  cl::Buffer states_, prev_gradients_, beta_[2], normals_;
+  cl::Buffer states_, prev_gradients_, relax_frames_, beta_[2], normals_;
   cl::Buffer fallback_normals_;  // begin's skinned normals (a handle)
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
