@@ -75,10 +75,12 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
 
 void ImplicitSkinner::run(const TransformList& skinning) {
   times_ = {};
-  skinning_->run(options_.base_skinning, skinning,
-                 /*recompute_normals=*/false);
+  // Tracking is enqueued behind the skinning without a wait between them.
+  skinning_->enqueue(options_.base_skinning, skinning,
+                     /*recompute_normals=*/false);
   tracking_->run(skinning, skinning_->positionsBuffer(),
                  skinning_->normalsBuffer());
+  skinning_->collectTimes();
   times_.upload_ms =
       skinning_->lastTimes().upload_ms + field_evaluation_->lastUploadMs();
   times_.skinning_ms = skinning_->lastTimes().skinning_ms;

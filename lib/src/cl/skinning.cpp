@@ -73,6 +73,28 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
 
 void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
                      bool recompute_normals) {
+  enqueue(method, skinning, recompute_normals);
+  collectTimes();
+}
+
+void ClSkinning::collectTimes() {
+  if (!pending_) return;
+  pending_ = false;
+  try {
+    (pending_normals_ ? normals_event_ : skin_event_).wait();
+    times_.upload_ms = eventMilliseconds(upload_event_);
+    times_.skinning_ms = eventMilliseconds(skin_event_);
+    times_.normals_ms =
+        pending_normals_ ? eventMilliseconds(normals_event_) : 0.0;
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSkinning: waiting for the skinning on " +
+                        context_->info().describe());
+  }
+}
+
+void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
+                         bool recompute_normals) {
+  collectTimes();  // a frame still pending reads staging_'s old contents
   if (static_cast<int>(skinning.size()) != joint_count_) {
     throw Error(ErrorCode::kInvalidArgument,
                 "ClSkinning::run: " + std::to_string(skinning.size()) +
@@ -140,10 +162,11 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
       }
     }
     if (profiling) {
-      (recompute_normals ? normals : skin).wait();
-      times_.upload_ms = eventMilliseconds(upload);
-      times_.skinning_ms = eventMilliseconds(skin);
-      times_.normals_ms = recompute_normals ? eventMilliseconds(normals) : 0.0;
+      upload_event_ = upload;
+      skin_event_ = skin;
+      normals_event_ = normals;
+      pending_ = true;
+      pending_normals_ = recompute_normals;
     }
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClSkinning::run (") +

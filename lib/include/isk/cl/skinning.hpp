@@ -33,6 +33,13 @@ class ClSkinning {
   // (so that lastTimes() holds this frame's stage times).
   void run(SkinningMethod method, const TransformList& skinning,
            bool recompute_normals = true);
+  // The same without waiting when the queue has profiling (later commands
+  // on the queue may follow at once, as the implicit skinner's tracking
+  // does); collectTimes() then waits for the frame's skinning and fills
+  // lastTimes(). Without profiling it is run().
+  void enqueue(SkinningMethod method, const TransformList& skinning,
+               bool recompute_normals = true);
+  void collectTimes();
 
   // Blocking reads of the last run's results (#V by 3).
   void readPositions(Matrix3Xf& out);
@@ -64,6 +71,8 @@ class ClSkinning {
   std::vector<float> staging_;  // packed joint transforms of the last run
   cl::Buffer skinned_normals_, out_positions_, out_normals_;
   SkinningStageTimes times_;
+  cl::Event upload_event_, skin_event_, normals_event_;  // of enqueue()
+  bool pending_ = false, pending_normals_ = false;
 };
 
 }  // namespace isk
