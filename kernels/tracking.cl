@@ -140,16 +140,20 @@ __kernel void track_begin(const uint vertex_count,
 // cos(contact angle), tolerance (field units), largest move (model units);
 // min_gradient: smallest |grad f| (model units); then ISK_TRACKING_PARAMS.
 // prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
-__kernel void track_project(const uint vertex_count, __global float* positions,
+__kernel void track_project(const uint march_count, __global float* positions,
                             __global const float* iso_values,
                             __global uchar* states,
                             __global float4* prev_gradients, const int steps,
                             const float4 step_params, const float min_gradient,
                             ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
                             ISK_COMPOSITION_PARAMS,
-                            __global float4* relax_frames) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
+                            __global float4* relax_frames,
+                            __global const int* march_order) {
+  // Work-item k marches vertex march_order[k] (tracked vertices only, by
+  // home field and rest locality).
+  const uint k = get_global_id(0);
+  if (k >= march_count) return;
+  const uint v = (uint)march_order[k];
   uchar state = states[v];
   if (state != TRACK_MARCHING) return;  // stopped: no more work this frame
   float3 x = vload3(v, positions);

@@ -345,6 +345,42 @@ TEST(SurfaceTracking, BlendAndBulgeFoldsDoNotCross) {
             enclosedVolume(b, mesh.triangles) + 0.005 * rest);
 }
 
+// The projection kernel's march order: every tracked vertex once (and no
+// other), grouped by home field.
+void checkMarchOrder(const Rig& rig, const ImplicitFields& fields) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
+  ASSERT_EQ(static_cast<int>(mesh.march_order.size()), mesh.trackedCount());
+  std::vector<int> seen(mesh.vertexCount(), 0);
+  for (size_t k = 0; k < mesh.march_order.size(); ++k) {
+    const int v = mesh.march_order[k];
+    ASSERT_GE(v, 0);
+    ASSERT_LT(v, mesh.vertexCount());
+    ASSERT_EQ(seen[v]++, 0) << "vertex " << v << " twice";
+    ASSERT_GT(mesh.iso_values[v], 0.f) << "untracked vertex " << v;
+    ASSERT_EQ(mesh.rings.representative[v], v) << "duplicate vertex " << v;
+    if (k > 0) {
+      ASSERT_LE(mesh.home_field[mesh.march_order[k - 1]], mesh.home_field[v])
+          << "position " << k << ": not grouped by home field";
+    }
+  }
+}
+
+TEST(TrackingMesh, MarchOrderHoldsEveryTrackedVertexOnceOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    checkMarchOrder(test::rigNamed(name), test::implicitFieldsOf(name));
+  }
+}
+
+TEST(TrackingMesh, MarchOrderHoldsEveryTrackedVertexOnceOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("march order on assets");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    checkMarchOrder(test::rigNamed(name), test::implicitFieldsOf(name));
+  }
+}
+
 // --- the broad phase: field neighbourhoods --------------------------------
 
 TEST(FieldNeighbourhoods, PosedBoxesMeetBySeparatingAxes) {

@@ -182,6 +182,41 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
       out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
     }
   }
+  // The tracked vertices by home field, then along a Morton curve of their
+  // rest positions: neighbouring work-items sample the same grids near the
+  // same nodes (cache reuse) and walk the same neighbourhood list.
+  const Eigen::Vector3f lo = mesh.positions.colwise().minCoeff();
+  const Eigen::Vector3f extent =
+      (mesh.positions.colwise().maxCoeff().transpose() - lo)
+          .cwiseMax(Eigen::Vector3f::Constant(1e-20f));
+  auto spread = [](uint64_t x) {  // 21 bits -> every third bit
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    x = (x | x << 2) & 0x1249249249249249ULL;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, int>> keyed;
+  for (int v = 0; v < vertex_count; ++v) {
+    if (!(out.iso_values[v] > 0) || out.rings.representative[v] != v) continue;
+    const Eigen::Vector3f t =
+        (mesh.positions.row(v).transpose() - lo).cwiseQuotient(extent);
+    uint64_t code = 0;
+    for (int a = 0; a < 3; ++a)
+      code |=
+          spread(static_cast<uint64_t>(std::clamp(t[a], 0.f, 1.f) * 1048575.f))
+          << a;
+    keyed.emplace_back(code, v);
+  }
+  std::stable_sort(
+      keyed.begin(), keyed.end(), [&](const auto& a, const auto& b) {
+        const int ha = out.home_field[a.second], hb = out.home_field[b.second];
+        return ha != hb ? ha < hb : a.first < b.first;
+      });
+  out.march_order.reserve(keyed.size());
+  for (const auto& k : keyed) out.march_order.push_back(k.second);
   return out;
 }
 
@@ -438,8 +473,7 @@ void CpuSurfaceTracking::setState(const Matrix3Xf& positions,
                                   const Matrix4Xf* relax_frames) {
   const int n = mesh_->vertexCount();
   if (positions.rows() != n || static_cast<int>(states.size()) != n ||
-      prev_gradients.rows() != n ||
-      (relax_frames && relax_frames->rows() != n))
+      prev_gradients.rows() != n || (relax_frames && relax_frames->rows() != n))
     throw Error(ErrorCode::kInvalidArgument,
                 "CpuSurfaceTracking::setState: expected " + std::to_string(n) +
                     " rows");

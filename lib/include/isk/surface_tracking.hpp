@@ -150,6 +150,10 @@ struct TrackingMesh {
   // a rest normal within ~8 degrees of its own (hard edges stay hard).
   VertexTriangleAdjacency normal_adjacency;
   float diagonal = 0;  // rest bounding-box diagonal (the model's size)
+  // The tracked vertices (iso value > 0, representatives) in the order the
+  // projection kernel marches them: by home field, then along a Morton
+  // curve of the rest positions (locality of the grid samples).
+  std::vector<int> march_order;
 
   int vertexCount() const { return static_cast<int>(iso_values.size()); }
   int trackedCount() const;
@@ -295,7 +299,7 @@ class CpuSurfaceTracking {
   Eigen::Vector4f sampleAt(const ComposedFieldSampler& sampler, int v,
                            const Eigen::Vector3f& x, Eigen::Vector4f* per_field,
                            HomeSamples* home) const;
-  Matrix4Xf prev_;  // previous unit gradient, w = 1 when set
+  Matrix4Xf prev_;          // previous unit gradient, w = 1 when set
   Matrix4Xf relax_frames_;  // see relaxFrames()
   std::vector<float> beta_, beta_scratch_;
   TrackingStageTimes times_;

@@ -83,6 +83,7 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_entries_ = int_buffer(fields * fields);
     neighbour_pair_offsets_ = int_buffer(fields + 1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
+    march_order_ = uploadReadOnly(ctx, mesh.march_order, &bytes_);
     ring_offsets_ = uploadReadOnly(ctx, mesh.rings.offsets, &bytes_);
     ring_neighbours_ = uploadReadOnly(ctx, mesh.rings.neighbours, &bytes_);
     ring_weights_ = uploadReadOnly(ctx, mesh.relaxation.weights, &bytes_);
@@ -106,7 +107,8 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     for (size_t v = 0; v < kinds.size(); ++v)
       kinds[v] = static_cast<uint8_t>(mesh.rings.kinds[v]);
     kinds_ = uploadReadOnly(ctx, kinds, &bytes_);
-    bytes_ += 3 * floats3 + n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
+    bytes_ +=
+        3 * floats3 + n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking: uploading the tracking mesh to " +
                         context_->info().describe());
@@ -130,8 +132,9 @@ void ClSurfaceTracking::addTime(Stage stage, double ms) {
   }
 }
 
-void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage) {
-  const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
+void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage, int items) {
+  const cl::NDRange global(
+      roundUp(std::max(items < 0 ? vertex_count_ : items, 1), 64));
   cl::Event event;
   if (context_->profilingEnabled()) {
     context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
@@ -220,7 +223,8 @@ void ClSurfaceTracking::project(int steps) {
   const float min_gradient =
       diagonal_ > 0 ? options_.min_gradient / diagonal_ : options_.min_gradient;
   try {
-    project_.setArg(0, static_cast<cl_uint>(vertex_count_));
+    const int march_count = static_cast<int>(mesh_->march_order.size());
+    project_.setArg(0, static_cast<cl_uint>(march_count));
     project_.setArg(1, positions_[current_]);
     project_.setArg(2, iso_values_);
     project_.setArg(3, states_);
@@ -233,7 +237,8 @@ void ClSurfaceTracking::project(int steps) {
     fields_->setFieldArgs(project_, 16);
     fields_->setCompositionArgs(project_, 20);
     project_.setArg(26, relax_frames_);
-    launch(project_, kProjection);
+    project_.setArg(27, march_order_);
+    launch(project_, kProjection, march_count);
   } catch (const cl::Error& e) {
     throwClError(
         e, "ClSurfaceTracking::project on " + context_->info().describe());

@@ -78,7 +78,8 @@ class ClSurfaceTracking {
 
  private:
   enum Stage { kProjection, kRelaxation, kSmoothing, kNormals };
-  void launch(cl::Kernel& kernel, Stage stage);
+  // Over `items` work-items (-1: one per vertex).
+  void launch(cl::Kernel& kernel, Stage stage, int items = -1);
   void addTime(Stage stage, double ms);
   void collectTimes();
   // Binds kernels/tracking.cl's ISK_TRACKING_PARAMS from first_index on.
@@ -96,10 +97,10 @@ class ClSurfaceTracking {
   float diagonal_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
-  cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
-      home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
-      neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
-      ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
+  cl::Buffer iso_values_, representative_, march_order_, rules_, kinds_,
+      home_fields_, home_margins_, partners_, neighbour_offsets_,
+      neighbour_entries_, neighbour_pair_offsets_, neighbour_pairs_,
+      ring_offsets_, ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
       normal_offsets_, normal_triangles_;
   cl::Buffer positions_[2];
   int current_ = 0;
