@@ -57,6 +57,11 @@
 #define ISK_FIELDS_IMAGE 0
 #endif
 
+// The per-sample helpers are inlined into their callers: on a CPU device
+// (PoCL) a call per field sample keeps the grid loads of consecutive fields
+// from overlapping.
+#define ISK_INLINE inline __attribute__((always_inline))
+
 #define ISK_FIELD_PARAM_STRIDE 7
 #define ISK_CONTROLLER_SAMPLES 65
 
@@ -88,7 +93,7 @@ __constant sampler_t kFieldSampler =
 // Trilinear interpolation of the float4 nodes of an n^3 grid at node
 // coordinates u in [0, n - 1]; `grid` points at its node (0, 0, 0). Same
 // order of operations as detail::trilinearNodes (lib/src/trilinear.hpp).
-float4 trilinear_nodes(__global const float4* grid, const int n,
+ISK_INLINE float4 trilinear_nodes(__global const float4* grid, const int n,
                        const float3 u) {
   const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));
   const float3 t = u - convert_float3(i);
@@ -107,7 +112,7 @@ float4 trilinear_nodes(__global const float4* grid, const int n,
 #endif
 
 // Whether node coordinates u lie in the grid (its support box).
-bool inside_nodes(const float3 u, const int resolution) {
+ISK_INLINE bool inside_nodes(const float3 u, const int resolution) {
   const float last = (float)(resolution - 1);
   return u.x >= 0.0f && u.y >= 0.0f && u.z >= 0.0f && u.x <= last &&
          u.y <= last && u.z <= last;
@@ -115,7 +120,7 @@ bool inside_nodes(const float3 u, const int resolution) {
 
 // Value and bone-frame gradient of field `field` at node coordinates u
 // (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
-float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
+ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
                           __global const float4* params, const uint field,
                           const int resolution, const float3 u) {
   if (!inside_nodes(u, resolution)) return (float4)(0.0f);
@@ -131,7 +136,7 @@ float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
 
 // Node coordinates of model-space point x (posed) in field `field`'s grid:
 // x is taken to the bone frame by the field's 3x4 rows.
-float3 field_node_coords(__global const float4* field_params,
+ISK_INLINE float3 field_node_coords(__global const float4* field_params,
                          const uint field, const float3 x) {
   __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
   const float4 r0 = p[0];
@@ -146,7 +151,7 @@ float3 field_node_coords(__global const float4* field_params,
 
 // Value and model-space gradient of field `field` at node coordinates u:
 // the gradient comes back by the transpose of the rows' linear part.
-float4 sample_field_at(ISK_FIELD_DATA_T field_data,
+ISK_INLINE float4 sample_field_at(ISK_FIELD_DATA_T field_data,
                        __global const float4* field_params, const uint field,
                        const int resolution, const float3 u) {
   __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
@@ -158,7 +163,7 @@ float4 sample_field_at(ISK_FIELD_DATA_T field_data,
 
 // Value and model-space gradient of field `field` at model-space point x
 // (posed).
-float4 sample_field(ISK_FIELD_DATA_T field_data,
+ISK_INLINE float4 sample_field(ISK_FIELD_DATA_T field_data,
                     __global const float4* field_params, const uint field,
                     const int resolution, const float3 x) {
   return sample_field_at(field_data, field_params, field, resolution,
@@ -167,14 +172,14 @@ float4 sample_field(ISK_FIELD_DATA_T field_data,
 
 // The field `field` at x if x lies in its bounding sphere, else 0 (value and
 // gradient): the broad phase.
-bool inside_sphere(__global const float4* field_params, const uint field,
+ISK_INLINE bool inside_sphere(__global const float4* field_params, const uint field,
                    const float3 x) {
   const float4 sphere = field_params[ISK_FIELD_PARAM_STRIDE * field + 6];
   const float3 d = x - sphere.xyz;
   return d.x * d.x + d.y * d.y + d.z * d.z <= sphere.w;
 }
 
-float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
+ISK_INLINE float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
                            __global const float4* field_params,
                            const uint field, const int resolution,
                            const float3 x) {
@@ -185,7 +190,7 @@ float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
 // Union (Vaillant et al. 2013, eq. 3): the larger value with its gradient;
 // on ties the one met first stays. Start from (float4)(0): nothing
 // positive gives value 0 and a zero gradient.
-float4 compose_union(const float4 best, const float4 sample) {
+ISK_INLINE float4 compose_union(const float4 best, const float4 sample) {
   return sample.x > best.x ? sample : best;
 }
 
