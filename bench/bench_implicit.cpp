@@ -33,6 +33,7 @@
 // over the whole clip, and the backends see the same sequence.
 //
 //   isk_bench --benchmark_filter='^Implicit/'
+//   isk_bench --benchmark_filter='^Levers/'
 //   isk_bench --benchmark_filter='^Scaling/'
 #include <benchmark/benchmark.h>
 
@@ -141,11 +142,12 @@ void setCounters(benchmark::State& state, const Rig& rig, int64_t frames,
                                              benchmark::Counter::kIsRate);
 }
 
-void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
+void implicitOpenClWith(benchmark::State& state, const Case& c, int device,
+                        const ImplicitSkinnerOptions& options) {
   const Rig& rig = c.rig();
   const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
   auto start = std::chrono::steady_clock::now();
-  ImplicitSkinner skinner(context(device), rig, fields);
+  ImplicitSkinner skinner(context(device), rig, fields, options);
   const double setup_ms = msSince(start);
   start = std::chrono::steady_clock::now();
   skinner.run(c.pose(rig, 0));  // PoCL compiles at the first launch
@@ -171,6 +173,22 @@ void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
   state.counters["setup_ms"] = setup_ms;
   state.counters["first_frame_ms"] = first_frame_ms;
   state.SetLabel(devices()[device].describe());
+}
+
+void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
+  implicitOpenClWith(state, c, device, ImplicitSkinnerOptions());
+}
+
+// Levers/<model>/<lever>:<d>: the implicit frame with one speed switch of
+// SurfaceTrackingOptions off (the result is the same, tests check it):
+// 'all' has every switch on, as Implicit/ runs it.
+void implicitLever(benchmark::State& state, const Case& c, int device,
+                   const std::string& lever) {
+  ImplicitSkinnerOptions options;
+  if (lever == "no-neighbourhoods")
+    options.tracking.field_neighbourhoods = false;
+  if (lever == "no-march-order") options.tracking.march_order = false;
+  implicitOpenClWith(state, c, device, options);
 }
 
 void dqsOpenCl(benchmark::State& state, const Case& c, int device) {
@@ -246,6 +264,21 @@ void registerImplicitBenchmarks() {
     if (!available(model)) continue;
     registerCase("Implicit/" + model.name + "/", modelCase(model), true,
                  "opencl", kMinTimeS);
+  }
+  // The speed switches, on the 53-field human and the 38k-vertex model.
+  for (const Model& model : models()) {
+    if (!available(model) ||
+        (model.name != "human-addon" && model.name != "CesiumMan-x16"))
+      continue;
+    for (const ClDeviceInfo& device : devices())
+      for (const char* lever : {"all", "no-neighbourhoods", "no-march-order"})
+        registerGuarded(
+            ("Levers/" + model.name + "/" + onDevice(lever, device.index))
+                .c_str(),
+            implicitLever, modelCase(model), device.index, std::string(lever))
+            ->Unit(benchmark::kMillisecond)
+            ->UseRealTime()
+            ->MinTime(kMinTimeS);
   }
   constexpr int kFixedBones = 4, kFixedVertices = 40000;
   const std::pair<int, const char*> sizes[] = {

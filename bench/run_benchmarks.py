@@ -163,7 +163,8 @@ class Results:
                 break
             for part in key:
                 m = re.fullmatch(r"(opencl|opencl-buffer|opencl-image|dqs|"
-                                 r"implicit|cold|warm|in-process):(\d+)",
+                                 r"implicit|cold|warm|in-process|all|"
+                                 r"no-neighbourhoods|no-march-order):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
                     self.devices[int(m.group(2))] = {
@@ -540,6 +541,52 @@ def implicit_section(results):
     return lines
 
 
+LEVERS = ("all", "no-neighbourhoods", "no-march-order")
+
+
+def levers_section(results):
+    runs = results.family("Levers")
+    lines = ["## Speed switches (`Levers/`)", ""]
+    if not runs:
+        return lines + ["Not run (no `Levers/` benchmark in this JSON).", ""]
+    lines += ["The implicit frame of `Implicit/` with one of the tracking's "
+              "speed switches (`SurfaceTrackingOptions`) off: "
+              "`field_neighbourhoods` (a vertex inside its home field's "
+              "support box samples only the fields whose posed boxes meet "
+              "that box, instead of every field) and `march_order` (the "
+              "projection marches the vertices by home field and along a "
+              "Morton curve of their rest positions, instead of by index). "
+              "Neither changes the result (tests compare the frames bit for "
+              "bit); 'all' has both on. 'frame / all' is the frame's time "
+              "over the 'all' frame's, measured in the same run.", ""]
+    models = {}
+    for key, run in runs.items():
+        if len(key) == 3:
+            models.setdefault(key[1], {})[key[2]] = run
+    order = model_order(results)
+    devices = sorted({split_device(b)[1] for m in models.values() for b in m
+                      if split_device(b)[1] is not None})
+    for d in devices:
+        rows = []
+        for model in ordered(models, order):
+            base = models[model].get(f"all:{d}")
+            for lever in LEVERS:
+                run = models[model].get(f"{lever}:{d}")
+                if not run:
+                    continue
+                frame = to_ms(run)
+                rows.append([model, lever, ms(frame), fps(fps_of(frame)),
+                             ms(run.get("projection_ms")),
+                             ratio(frame / to_ms(base)) if base else "n/a"])
+        if rows:
+            lines += [f"### {results.device_name(d)} (OpenCL device {d})",
+                      ""]
+            lines += table(["model", "switches", "ms/frame", "fps",
+                            "projection ms", "frame / all"], rows,
+                           ["l", "l", "r", "r", "r", "r"])
+    return lines
+
+
 def paper_section(results):
     models = implicit_models(results)
     lines = ["## The paper's Table 1 beside ours", ""]
@@ -881,6 +928,7 @@ def render(data, command_text, elapsed=None):
     lines += targets_section(results)
     lines += models_section(results)
     lines += implicit_section(results)
+    lines += levers_section(results)
     lines += paper_section(results)
     lines += frame_section(results)
     lines += scaling_section(results)

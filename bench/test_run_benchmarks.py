@@ -44,6 +44,20 @@ class Render(unittest.TestCase):
         self.assertIn("Not run", text)
         self.assertNotIn("nan", text.lower())
 
+    def test_levers_against_all(self):
+        data = document([
+            run("Levers/human-addon/all:0/min_time:2.000", 10.0,
+                projection_ms=8.0, vertices=7798),
+            run("Levers/human-addon/no-neighbourhoods:0/min_time:2.000", 15.0,
+                projection_ms=13.0, vertices=7798),
+        ])
+        text = run_benchmarks.render(data, "cmd")
+        rows = [l for l in text.splitlines()
+                if l.startswith("| human-addon | no-neighbourhoods")]
+        self.assertEqual(len(rows), 1, text)
+        self.assertTrue(rows[0].endswith("| 1.50x |"), rows[0])
+        self.assertNotIn("nan", text.lower())
+
     def test_targets_from_the_figures(self):
         data = document([
             implicit("human-addon", "opencl:0", 10.0, 7798),   # 100 fps

@@ -36,7 +36,8 @@
 // fields whose posed support box meets h's, ascending, NEIGHBOUR_PARTNER set
 // on h and its partners; in neighbour_pairs[...pair_offsets[h]...] the pairs
 // both of whose fields are listed); contact_params: x 1 when the contact by
-// home field is on (0: the paper's march only), y its gap in field units.
+// home field is on (0: the paper's march only), y its gap in field units,
+// z 1 when the neighbourhoods are used (0: every field is sampled).
 #define ISK_TRACKING_PARAMS                                              \
   __global const int *home_fields, __global const float *home_margins,  \
       __global const int *partners, __global const int *neighbour_offsets, \
@@ -63,7 +64,7 @@ float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
   float4 other = (float4)(0.0f);
   bool listed = false;
   float3 home_u = (float3)(0.0f);
-  if (home >= 0) {
+  if (home >= 0 && contact_params.z > 0.0f) {
     home_u = field_node_coords(field_params, (uint)home, x);
     listed = inside_nodes(home_u, resolution);
   }

@@ -843,6 +843,58 @@ TEST(ImplicitSkinner, CharactersShareOneContext) {
             1e-5f * finger.boundingBoxDiagonal());
 }
 
+// The speed switches (neighbourhoods, march order) change no result: the
+// same frame with each off, on the CPU reference and on OpenCL.
+void checkSpeedSwitches(const Rig& rig,
+                        std::shared_ptr<const ImplicitFields> fields,
+                        const TransformList& pose) {
+  auto frames = [&](bool neighbourhoods, bool march_order) {
+    ImplicitSkinnerOptions options;
+    options.tracking.field_neighbourhoods = neighbourhoods;
+    options.tracking.march_order = march_order;
+    CpuImplicitSkinner cpu(rig, fields, options);
+    cpu.run(pose);
+    ImplicitSkinner device(test::sharedContext(), rig, fields, options);
+    device.run(pose);
+    Matrix3Xf positions;
+    device.readPositions(positions);
+    return std::make_pair(Matrix3Xf(cpu.positions()), positions);
+  };
+  const auto all = frames(true, true);
+  for (const auto& [neighbourhoods, march_order] :
+       {std::make_pair(false, true), std::make_pair(true, false),
+        std::make_pair(false, false)}) {
+    SCOPED_TRACE(std::string("neighbourhoods ") +
+                 (neighbourhoods ? "on" : "off") + ", march order " +
+                 (march_order ? "on" : "off"));
+    const auto other = frames(neighbourhoods, march_order);
+    const test::RowMismatch cpu =
+        test::largestRowDistance(other.first, all.first);
+    EXPECT_EQ(cpu.distance, 0.f) << "CPU reference, vertex " << cpu.row;
+    const test::RowMismatch device =
+        test::largestRowDistance(other.second, all.second);
+    EXPECT_EQ(device.distance, 0.f) << "OpenCL, vertex " << device.row;
+  }
+}
+
+TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnProceduralRigs) {
+  const BentCylinder& c = bentCylinder();
+  checkSpeedSwitches(c.rig, c.fields, bendAt(c.rig, c.joint, 135));
+  const Rig& arm = test::rigNamed("arm");
+  checkSpeedSwitches(arm, sharedFields("arm"), clipPoses(arm, 4).back());
+}
+
+TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("speed switches on assets");
+  for (const std::string& name :
+       {"CesiumMan.glb", "human-addon-animations.glb"}) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkSpeedSwitches(rig, sharedFields(name), clipPoses(rig, 3).back());
+  }
+}
+
 TEST(ImplicitSkinner, BadInputIsAClearError) {
   const Rig& arm = test::rigNamed("arm");
   ImplicitSkinner skinner(test::sharedContext(), arm, sharedFields("arm"));

@@ -487,7 +487,8 @@ Eigen::Vector4f CpuSurfaceTracking::sampleAt(
     const ComposedFieldSampler& sampler, int v, const Eigen::Vector3f& x,
     Eigen::Vector4f* per_field, HomeSamples* home) const {
   const int h = mesh_->home_field[v];
-  if (h >= 0 && h < sampler.fieldCount() && sampler.insideBox(h, x)) {
+  if (options_.field_neighbourhoods && h >= 0 && h < sampler.fieldCount() &&
+      sampler.insideBox(h, x)) {
     const FieldNeighbourhoods& nb = neighbourhoods_;
     const int* list = nb.entries.data() + nb.offsets[h];
     const int count = nb.offsets[h + 1] - nb.offsets[h];

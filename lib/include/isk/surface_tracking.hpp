@@ -103,6 +103,13 @@ struct SurfaceTrackingOptions {
   // Laplacian steps.
   int crease_diffusion = 5;
   int crease_steps = 10;
+  // Speed only, the same result either way (benchmarks switch them off to
+  // measure them): sample a vertex's home field neighbourhood instead of
+  // every field while it is in its home field's box (FieldNeighbourhoods),
+  // and march the vertices in TrackingMesh::march_order rather than by
+  // index (OpenCL).
+  bool field_neighbourhoods = true;
+  bool march_order = true;
 
   // Names the first bad parameter and its valid range.
   Validation validate() const;

@@ -83,7 +83,13 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_entries_ = int_buffer(fields * fields);
     neighbour_pair_offsets_ = int_buffer(fields + 1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
-    march_order_ = uploadReadOnly(ctx, mesh.march_order, &bytes_);
+    if (options.march_order) {
+      march_order_ = uploadReadOnly(ctx, mesh.march_order, &bytes_);
+    } else {  // the same vertices by index
+      std::vector<int> by_index(mesh.march_order);
+      std::sort(by_index.begin(), by_index.end());
+      march_order_ = uploadReadOnly(ctx, by_index, &bytes_);
+    }
     ring_offsets_ = uploadReadOnly(ctx, mesh.rings.offsets, &bytes_);
     ring_neighbours_ = uploadReadOnly(ctx, mesh.rings.neighbours, &bytes_);
     ring_weights_ = uploadReadOnly(ctx, mesh.relaxation.weights, &bytes_);
@@ -164,8 +170,10 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
   kernel.setArg(first_index + 4, neighbour_entries_);
   kernel.setArg(first_index + 5, neighbour_pair_offsets_);
   kernel.setArg(first_index + 6, neighbour_pairs_);
-  kernel.setArg(first_index + 7, cl_float4{{options_.home_contact ? 1.f : 0.f,
-                                            options_.contact_gap, 0.f, 0.f}});
+  kernel.setArg(
+      first_index + 7,
+      cl_float4{{options_.home_contact ? 1.f : 0.f, options_.contact_gap,
+                 options_.field_neighbourhoods ? 1.f : 0.f, 0.f}});
 }
 
 void ClSurfaceTracking::begin(const TransformList& skinning,
