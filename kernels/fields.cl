@@ -9,8 +9,11 @@
 // Storage, chosen at build time by ISK_FIELDS_IMAGE (0 when undefined):
 //   1: one read-only image3d_t atlas, CL_RGBA / CL_FLOAT, every field one
 //      N^3 tile of it (tiles side by side in x, y and z; field i at tile
-//      (i % tx, (i / tx) % ty, i / (tx * ty))), sampled by the hardware's
-//      trilinear filter at tile_origin + u + 0.5;
+//      (i % tx, (i / tx) % ty, i / (tx * ty))); the 8 texels around
+//      tile_origin + u are read unfiltered and interpolated here, in the
+//      buffer's order: hardware filtering is not used because GPUs weight
+//      with 8-bit fractions (NVIDIA: value errors near 1e-3, gradients 5%),
+//      too coarse to march back to an iso value;
 //   0: a __global const float4* buffer, field i at offset i * N^3, node
 //      (x, y, z) at x + N * (y + N * z), interpolated trilinearly here exactly
 //      as FieldGrid::sampleLocal does it.
@@ -20,7 +23,8 @@
 //   [0..2] rows of the model -> bone 3x4 matrix (per pose);
 //   [3]    box_min.xyz (bone frame), w unused;
 //   [4]    1 / spacing, xyz, w = N - 1 (last node index, as a float);
-//   [5]    image path: tile origin + 0.5 (texels), xyz; unused by the buffer;
+//   [5]    image path: tile origin + 0.5 (texels), xyz (the texel index is
+//          its integer part); unused by the buffer;
 //   [6]    bounding sphere of the support box, model space (per pose):
 //          centre xyz, w = squared radius. A point outside it is outside the
 //          box: the field is not sampled (broad phase).
@@ -68,10 +72,33 @@
 #if ISK_FIELDS_IMAGE
 #define ISK_FIELD_DATA_T read_only image3d_t
 #define ISK_OPERATOR_DATA_T read_only image3d_t
-// Texel centres at integer + 0.5; tile edges are reached with a zero weight
-// on the neighbour, so u in [0, N-1] never reads another tile.
-__constant sampler_t kFieldSampler =
-    CLK_NORMALIZED_COORDS_FALSE | CLK_ADDRESS_CLAMP_TO_EDGE | CLK_FILTER_LINEAR;
+__constant sampler_t kTexelSampler =
+    CLK_NORMALIZED_COORDS_FALSE | CLK_ADDRESS_CLAMP_TO_EDGE | CLK_FILTER_NEAREST;
+
+// Trilinear interpolation of the n^3 tile whose node (0, 0, 0) is texel
+// `origin`, at node coordinates u in [0, n - 1]: the same order of
+// operations as trilinear_nodes (the buffer path) and the CPU reference.
+ISK_INLINE float4 trilinear_texels(read_only image3d_t image, const int4 origin,
+                                   const int n, const float3 u) {
+  const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));
+  const float3 t = u - convert_float3(i);
+  const int4 b = origin + (int4)(i, 0);
+  const float4 c000 = read_imagef(image, kTexelSampler, b);
+  const float4 c100 = read_imagef(image, kTexelSampler, b + (int4)(1, 0, 0, 0));
+  const float4 c010 = read_imagef(image, kTexelSampler, b + (int4)(0, 1, 0, 0));
+  const float4 c110 = read_imagef(image, kTexelSampler, b + (int4)(1, 1, 0, 0));
+  const float4 c001 = read_imagef(image, kTexelSampler, b + (int4)(0, 0, 1, 0));
+  const float4 c101 = read_imagef(image, kTexelSampler, b + (int4)(1, 0, 1, 0));
+  const float4 c011 = read_imagef(image, kTexelSampler, b + (int4)(0, 1, 1, 0));
+  const float4 c111 = read_imagef(image, kTexelSampler, b + (int4)(1, 1, 1, 0));
+  const float4 x00 = c000 + t.x * (c100 - c000);
+  const float4 x10 = c010 + t.x * (c110 - c010);
+  const float4 x01 = c001 + t.x * (c101 - c001);
+  const float4 x11 = c011 + t.x * (c111 - c011);
+  const float4 y0 = x00 + t.y * (x10 - x00);
+  const float4 y1 = x01 + t.y * (x11 - x01);
+  return y0 + t.z * (y1 - y0);
+}
 #else
 #define ISK_FIELD_DATA_T __global const float4*
 #define ISK_OPERATOR_DATA_T __global const float4*
@@ -126,7 +153,8 @@ ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
   if (!inside_nodes(u, resolution)) return (float4)(0.0f);
 #if ISK_FIELDS_IMAGE
   const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
-  return read_imagef(field_data, kFieldSampler, (float4)(origin + u, 0.0f));
+  return trilinear_texels(field_data, (int4)(convert_int3_rtz(origin), 0),
+                          resolution, u);
 #else
   const size_t n = (size_t)resolution;
   return trilinear_nodes(field_data + (size_t)field * n * n * n, resolution,
@@ -204,10 +232,8 @@ float3 sample_operator(ISK_OPERATOR_DATA_T operator_data, const int table,
                             clamp(y, 0.0f, 1.0f) * last,
                             clamp(theta * scales.y, 0.0f, last));
 #if ISK_FIELDS_IMAGE
-  return read_imagef(operator_data, kFieldSampler,
-                     (float4)(u.x + 0.5f, u.y + 0.5f,
-                              (float)table * (last + 1.0f) + u.z + 0.5f, 0.0f))
-      .xyz;
+  const int n = (int)last + 1;
+  return trilinear_texels(operator_data, (int4)(0, 0, table * n, 0), n, u).xyz;
 #else
   const int n = (int)last + 1;
   const size_t nn = (size_t)n;

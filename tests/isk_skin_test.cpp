@@ -606,8 +606,7 @@ TEST(IskSkinTest, ReferenceAndOpenClGiveTheSameIsoDrift) {
       armImplicitSection({"--operator", "blend", "--device", "reference"});
   ASSERT_TRUE(opencl.is_object() && reference.is_object());
   EXPECT_EQ(reference["evaluation"], "reference");
-  // Same fields, same composition: only float rounding (the buffer path) or
-  // a GPU's texture filtering (the image path) differ.
+  // Same fields, same composition: only float rounding differs.
   for (const char* key : {"mean", "max"}) {
     EXPECT_NEAR(driftOf(opencl, key), driftOf(reference, key),
                 std::string(key) == "mean" ? 5e-4 : 2e-3)

@@ -5,14 +5,17 @@
 // model -> bone transforms and evaluates every field and their composition
 // (isk/field_composition.hpp: blend and bulge pairs through the operator
 // tables, uploaded with the fields) at posed points. Results match the CPU
-// reference FieldEvaluationJob (isk/field_evaluation.hpp): to float rounding on
-// the buffer path, to the device's texture filtering precision on the image
-// path (GPUs interpolate with 8-bit weights).
+// reference FieldEvaluationJob (isk/field_evaluation.hpp) to float rounding on
+// both paths.
 //
 // Storage of the grids and operator tables (FieldStorage):
 //   kImage   one read-only 3D image (CL_RGBA / CL_FLOAT) holding every field
 //            as an N^3 tile, and one holding the operator tables stacked in
-//            z, sampled with the hardware's trilinear filter;
+//            z; the 8 texels around a point are read unfiltered and
+//            interpolated in the kernel like the buffer path (hardware
+//            filtering weights with 8-bit fractions on GPUs: NVIDIA's gave
+//            value errors near 1e-3 and gradients 5% off, enough to stop
+//            vertices from marching back to their iso value);
 //   kBuffer  float4 buffers, field i at offset i * N^3, table t at t * M^3,
 //            interpolated in the kernel exactly as FieldGrid::sampleLocal
 //            and OperatorTable::sample;
@@ -20,7 +23,7 @@
 //            (auto or empty: ignored; anything else: isk::Error
 //            kInvalidArgument), else kImage on GPU devices and kBuffer on
 //            every other device (CPU devices such as PoCL: their image
-//            filtering runs in software and is slower than the buffer path).
+//            reads run in software and are slower than the buffer path).
 // kImage (asked for or picked by kAuto) falls back to kBuffer when the device
 // has no image support, no CL_RGBA / CL_FLOAT 3D images, or when the atlas
 // would exceed CL_DEVICE_IMAGE3D_MAX_WIDTH / HEIGHT / DEPTH; storage() tells
