@@ -15,6 +15,7 @@ data for; the others say "not run". Progress goes to stderr.
 Python 3 standard library only.
 """
 import argparse
+import glob
 import datetime
 import json
 import math
@@ -288,8 +289,9 @@ def header_section(results, command_text, elapsed):
     else:
         lines.append("- No OpenCL device in this run.")
     if not results.gpu_devices():
-        lines.append("- No GPU device in this run: every GPU figure is "
-                     "'no GPU run'.")
+        lines.append("- No GPU device in this run: the GPU figures come "
+                     "from the recorded runs at the end of this file, if "
+                     "any, else they read 'no GPU run'.")
     lines.append("- 'CPU reference' is the library's single-thread C++ "
                  "implementation of the same frame.")
     lines.append("- Google Benchmark reports its own library as a "
@@ -308,7 +310,35 @@ def implicit_models(results):
     return out
 
 
-def targets_section(results):
+def gpu_target_rows(results, where=""):
+    """Target rows a run's GPU devices give: the ~170k-vertex model's fps
+    and its implicit / DQS ratio. `where` is appended to the model cell."""
+    rows = []
+    for model, runs in implicit_models(results).items():
+        for d in results.gpu_devices():
+            cl, dqs = runs.get(f"opencl:{d}"), runs.get(f"dqs:{d}")
+            if not cl:
+                continue
+            v = int(cl["vertices"])
+            if not RANGE_170K[0] <= v <= RANGE_170K[1]:
+                continue
+            cell = f"{model} ({v:,} v), {results.device_name(d)}{where}"
+            f = fps_of(to_ms(cl))
+            rows.append([f"implicit, ~170k vertices, GPU: >= "
+                         f"{TARGET_GPU_FPS_170K:.0f} fps", cell,
+                         f"{fps(f)} fps",
+                         "met" if f >= TARGET_GPU_FPS_170K else "**not met**"])
+            if dqs and where:
+                r = to_ms(cl) / to_ms(dqs)
+                rows.append([f"implicit / DQS, ~170k vertices, same device: "
+                             f"<= {TARGET_RATIO_170K:.0f}x", cell,
+                             ratio(r, 1),
+                             "met" if r <= TARGET_RATIO_170K
+                             else "**not met**"])
+    return rows
+
+
+def targets_section(results, recorded=()):
     lines = ["## Targets", "",
              "The performance issue's targets, measured in this run "
              "(reported, never asserted by tests). 'The ~40k-vertex model' is "
@@ -367,21 +397,10 @@ def targets_section(results):
                          f"{results.device_name(d)}", ratio(s),
                          verdict(s >= TARGET_SPEEDUP)])
     gpus = results.gpu_devices()
-    gpu_rows = 0
-    for model, runs in models.items():
-        for d in gpus:
-            cl = runs.get(f"opencl:{d}")
-            if not cl:
-                continue
-            v = int(cl["vertices"])
-            if RANGE_170K[0] <= v <= RANGE_170K[1]:
-                f = fps_of(to_ms(cl))
-                gpu_rows += 1
-                rows.append([f"implicit, ~170k vertices, GPU: >= "
-                             f"{TARGET_GPU_FPS_170K:.0f} fps",
-                             f"{model} ({v:,} v), {results.device_name(d)}",
-                             f"{fps(f)} fps",
-                             verdict(f >= TARGET_GPU_FPS_170K)])
+    gpu_rows = gpu_target_rows(results)
+    for path, other in recorded:
+        gpu_rows += gpu_target_rows(other, f" (recorded run `{path}`)")
+    rows += gpu_rows
     if not gpu_rows:
         rows.append([f"implicit, ~170k vertices, GPU: >= "
                      f"{TARGET_GPU_FPS_170K:.0f} fps",
@@ -921,11 +940,53 @@ def failed_section(results):
     return lines
 
 
-def render(data, command_text, elapsed=None):
+def demoted(lines):
+    """Markdown lines with every heading one level deeper."""
+    return ["#" + l if l.startswith("#") else l for l in lines]
+
+
+def recorded_section(path, results):
+    """A run recorded on another machine (bench/results/*.json): where it
+    ran, how, and its per-frame, lever, field and start-up tables."""
+    ctx = results.context
+    devices = ", ".join(v["name"] for _, v in sorted(results.devices.items()))
+    lines = [f"## Recorded run: {devices or 'no OpenCL device'}", "",
+             f"From `{path}`, a run on another machine kept in the "
+             "repository (the machine above has no such device). Compare "
+             "figures within this section only.", ""]
+    lines += [f"- Run of {ctx.get('date', '?')} on host "
+              f"`{ctx.get('host_name', '?')}`: {ctx.get('num_cpus', '?')} "
+              f"CPUs at {ctx.get('mhz_per_cpu', '?')} MHz."]
+    for d, v in sorted(results.devices.items()):
+        lines.append(f"- OpenCL device {d} ({v['type']}): {v['name']}.")
+    if ctx.get("isk_run_note"):
+        lines.append(f"- {ctx['isk_run_note']}")
+    if ctx.get("isk_run_command"):
+        lines += ["", "How it was run:", "", "```sh", ctx["isk_run_command"],
+                  "```"]
+    lines.append("")
+    body = []
+    if results.family("Implicit"):
+        body += implicit_section(results)
+    if results.family("Levers"):
+        body += levers_section(results)
+    if results.family("Frame"):
+        body += frame_section(results)
+    if results.family("FieldEval") or results.family("FieldCompose"):
+        body += fields_section(results)
+    if results.family("ProgramBuild") or results.family("FieldBuild"):
+        body += precompute_section(results)
+    return lines + demoted(body)
+
+
+def render(data, command_text, elapsed=None, recorded=()):
+    """The markdown of one run's JSON `data`; `recorded` holds (path, JSON)
+    of runs recorded on other machines, shown after it."""
     results = Results(data)
+    recorded = [(path, Results(other)) for path, other in recorded]
     lines = []
     lines += header_section(results, command_text, elapsed)
-    lines += targets_section(results)
+    lines += targets_section(results, recorded)
     lines += models_section(results)
     lines += implicit_section(results)
     lines += levers_section(results)
@@ -935,6 +996,8 @@ def render(data, command_text, elapsed=None):
     lines += precompute_section(results)
     lines += fields_section(results)
     lines += failed_section(results)
+    for path, other in recorded:
+        lines += recorded_section(path, other)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -964,6 +1027,10 @@ def main():
                              "keep it)")
     parser.add_argument("--from-json",
                         help="write the markdown from this JSON, run nothing")
+    parser.add_argument("--recorded", nargs="*",
+                        help="JSON of runs recorded on other machines, shown "
+                             "after this run (default: bench/results/*.json;"
+                             " none with an empty list)")
     parser.add_argument("bench_args", nargs="*",
                         help="more isk_bench arguments (after --)")
     args = parser.parse_args()
@@ -1004,7 +1071,14 @@ def main():
         ctx["isk_run_seconds"] = elapsed
         with open(json_path, "w") as f:
             json.dump(data, f, indent=1)
-    text = render(data, command_text, elapsed)
+    if args.recorded is None:
+        args.recorded = sorted(
+            glob.glob(os.path.join(REPO, "bench", "results", "*.json")))
+    recorded = []
+    for path in args.recorded:
+        with open(path) as f:
+            recorded.append((shown_path(path), json.load(f)))
+    text = render(data, command_text, elapsed, recorded)
     with open(args.out, "w") as f:
         f.write(text)
     log(f"== wrote {args.out}")

@@ -99,6 +99,26 @@ class Render(unittest.TestCase):
         self.assertTrue(gpu.endswith("| met |"), gpu)
         self.assertNotIn("No GPU device", text)
 
+    def test_a_recorded_gpu_run_fills_the_gpu_targets(self):
+        here = document([implicit("Big", "opencl:0", 50.0, 150000),
+                         implicit("Big", "dqs:0", 5.0, 150000)])
+        there = document([implicit("Big", "opencl:0", 4.0, 150000),
+                          implicit("Big", "dqs:0", 1.0, 150000)],
+                         devices=(("gpu", "Vendor / GPU"),))
+        text = run_benchmarks.render(here, "cmd",
+                                     recorded=[("bench/results/x.json",
+                                                there)])
+        rows = [l for l in text.splitlines()
+                if "recorded run `bench/results/x.json`" in l]
+        self.assertEqual(len(rows), 2, text)
+        self.assertIn("| 250 fps | {} |".format("**not met**"), rows[0])
+        self.assertIn("| 4.0x | met |", rows[1])
+        # This run's own ratio (10x) stays in the table, not met.
+        self.assertIn("| 10.0x | **not met** |", text)
+        self.assertIn("## Recorded run: Vendor / GPU", text)
+        self.assertIn("#### Vendor / GPU (OpenCL device 0)", text)
+        self.assertNotIn("nan", text.lower())
+
     def test_partial_families_and_google_benchmark_suffixes(self):
         data = document([
             run("Frame/opencl:0/M/dqs", 2.0, vertices=1000, upload_ms=0.1,
