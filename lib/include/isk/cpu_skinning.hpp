@@ -36,7 +36,9 @@ class CpuSkinning {
   void readPositions(Matrix3Xf& out) const { out = positions_; }
   void readNormals(Matrix3Xf& out) const { out = normals_; }
 
+  // Milliseconds per stage of the last run.
   const SkinningStageTimes& lastTimes() const { return times_; }
+  // #V of the mesh given to the constructor.
   int vertexCount() const { return static_cast<int>(rest_positions_.rows()); }
 
  private:

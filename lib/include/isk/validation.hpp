@@ -11,7 +11,9 @@ namespace isk {
 
 class Validation {
  public:
+  // Success.
   static Validation ok() { return Validation(); }
+  // Failure with a reason naming what is wrong ("vertex 12: NaN weight").
   static Validation fail(std::string reason) {
     Validation v;
     v.ok_ = false;
@@ -19,6 +21,7 @@ class Validation {
     return v;
   }
 
+  // True when ok.
   explicit operator bool() const { return ok_; }
   bool isOk() const { return ok_; }
   // Empty when isOk().
