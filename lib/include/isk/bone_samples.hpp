@@ -27,6 +27,7 @@
 
 namespace isk {
 
+// How a part is sampled (the paper's values by default).
 struct BoneSamplingOptions {
   int target_samples = 50;     // Poisson-disk target per part
   double culling_h = 0.05;     // eq. (2), a fraction of the bone length

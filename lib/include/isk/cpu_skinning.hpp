@@ -14,6 +14,7 @@
 
 namespace isk {
 
+// One character's geometric skinning on the CPU (single thread).
 class CpuSkinning {
  public:
   // Validates the mesh and weights (isk::Error kInvalidArgument) and keeps a

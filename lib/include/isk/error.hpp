@@ -11,6 +11,7 @@
 
 namespace isk {
 
+// What kind of failure an isk::Error is.
 enum class ErrorCode {
   kInvalidArgument,  // the caller passed something malformed (sizes, indices)
   kIo,               // a file could not be read or written

@@ -43,6 +43,7 @@ struct ImplicitFieldsOptions {
 struct ImplicitFieldsTimes {
   double partition_ms = 0, sampling_ms = 0, fitting_ms = 0, baking_ms = 0,
          operators_ms = 0, iso_ms = 0;
+  // Sum of the stages.
   double total() const {
     return partition_ms + sampling_ms + fitting_ms + baking_ms + operators_ms +
            iso_ms;

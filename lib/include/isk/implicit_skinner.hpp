@@ -58,11 +58,14 @@ struct ImplicitStageTimes {
   double skinning_ms = 0;       // base skinning
   TrackingStageTimes tracking;  // projection, relaxation, smoothing, normals
   double readback_ms = 0;       // last readPositions + readNormals
+  // Sum of the stages.
   double total() const {
     return upload_ms + skinning_ms + tracking.total() + readback_ms;
   }
 };
 
+// Implicit skinning of one character on an OpenCL device (see the top of
+// this file). Not copyable; movable.
 class ImplicitSkinner {
  public:
   // Builds the rig's fields with options.fields and uploads. Throws

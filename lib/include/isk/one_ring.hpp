@@ -26,6 +26,7 @@
 
 namespace isk {
 
+// The kind of a vertex's ring (see above).
 enum class RingKind : uint8_t {
   kClosed = 0,
   kBoundary = 1,

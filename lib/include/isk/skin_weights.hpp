@@ -20,6 +20,7 @@ struct SkinWeights {
   std::vector<uint32_t> joints;   // #influences, joint indices
   std::vector<float> weights;     // #influences, sum to 1 per vertex
 
+  // #V (0 when offsets is empty).
   int vertexCount() const {
     return offsets.empty() ? 0 : static_cast<int>(offsets.size()) - 1;
   }

@@ -75,6 +75,8 @@
 
 namespace isk {
 
+// The parameters of tracking (above); the defaults are the paper's values
+// where it gives one.
 struct SurfaceTrackingOptions {
   // Rounds of (projection_steps projection steps, then one relaxation). The
   // paper relaxes after each pair of projection steps.
@@ -221,8 +223,8 @@ bool posedBoxesMeet(const FieldGrid& a, const Eigen::Affine3f& a_to_bone,
 // activePartners list; null: none), from the #fields samples at a point
 // (value, gradient; zero when none).
 struct HomeSamples {
-  Eigen::Vector4f home = Eigen::Vector4f::Zero();
-  Eigen::Vector4f other = Eigen::Vector4f::Zero();
+  Eigen::Vector4f home = Eigen::Vector4f::Zero();   // value, gradient
+  Eigen::Vector4f other = Eigen::Vector4f::Zero();  // value, gradient
 };
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
                         int vertex, const Eigen::Vector4f* per_field);
@@ -242,6 +244,7 @@ struct TrackingStageTimes {
   double relaxation_ms = 0;  // all relaxation steps
   double smoothing_ms = 0;   // beta diffusion and Laplacian steps
   double normals_ms = 0;     // seam copies and normals
+  // Sum of the stages.
   double total() const {
     return projection_ms + relaxation_ms + smoothing_ms + normals_ms;
   }
@@ -265,10 +268,10 @@ class CpuSurfaceTracking {
   // mesh or a pose shorter than the fields' joints.
   void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
              const Matrix3Xf& skinned_normals);
-  void project(int steps);
-  void relax();
-  void smooth();  // beta, its diffusion and the Laplacian steps
-  void finish();  // seam copies and normals
+  void project(int steps);  // `steps` projection steps (eq. 4)
+  void relax();             // one relaxation step (eq. 5, 6)
+  void smooth();            // beta, its diffusion and the Laplacian steps
+  void finish();            // seam copies and normals
 
   // The whole frame: begin, rounds x (project, relax), smooth, finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,

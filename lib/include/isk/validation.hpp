@@ -9,6 +9,7 @@
 
 namespace isk {
 
+// Ok, or failed with a reason. Cheap to copy; never throws by itself.
 class Validation {
  public:
   // Success.

@@ -20,6 +20,7 @@
 
 namespace isk {
 
+// One character's surface tracking on an OpenCL device (see above).
 class ClSurfaceTracking {
  public:
   // `fields` (kept by reference, must outlive this) evaluates the
