@@ -35,24 +35,33 @@
 
 namespace isk {
 
+// The analytic field of one bone, as fitted by fitBoneField. Lengths are in
+// model units (those of the rig's mesh); values lie in [0, 1], 0.5 on the
+// part's surface, larger inside.
 struct BoneField {
-  int joint = -1;
+  int joint = -1;           // the joint (skeleton index) of the part
   Hrbf hrbf;                // fitted in model space (bind pose)
-  double radius = 0;        // r of t_r
-  double guard_radius = 0;  // R of the guard (above)
-  BoneSegment segment;
+  double radius = 0;        // r of t_r, model units
+  double guard_radius = 0;  // R of the guard (above), model units
+  BoneSegment segment;      // b0 -> b1, bind pose, model space
+  // Bone frame (origin b0, x along the bone) to model space, bind pose.
   Eigen::Isometry3d bone_to_model = Eigen::Isometry3d::Identity();
-  Eigen::AlignedBox3d support_box;  // bone frame
+  // Where f can be non-zero: the box of the capsule of radius R + r around
+  // the bone, in the bone frame.
+  Eigen::AlignedBox3d support_box;
 
-  // max(d_i, rho - r) and its gradient (model space) at model-space x.
+  // max(d_i, rho - R) and its gradient (model space) at model-space x: a
+  // signed distance, model units, negative inside.
   void guardedDistance(const Eigen::Vector3d& x, double& distance,
                        Eigen::Vector3d& gradient) const;
-  // The same from an HRBF value and gradient already evaluated at x.
+  // The same from an HRBF value and gradient already evaluated at x:
+  // `distance` and `gradient` come in as d_i(x) and grad d_i(x) and leave
+  // guarded.
   void guard(const Eigen::Vector3d& x, double& distance,
              Eigen::Vector3d& gradient) const;
 
-  // Analytic f and grad f at a model-space point at the bind pose; 0 and a
-  // zero gradient outside the support box.
+  // Analytic f and grad f (per model unit) at a model-space point at the
+  // bind pose; 0 and a zero gradient outside the support box. Never throws.
   double value(const Eigen::Vector3d& x) const;
   void evaluate(const Eigen::Vector3d& x, double& value,
                 Eigen::Vector3d& gradient) const;

@@ -27,6 +27,8 @@
 
 namespace isk {
 
+// A bone as the fields see it: a segment in model space at the bind pose
+// (model units).
 struct BoneSegment {
   int joint = -1;                     // joint index in the skeleton
   Eigen::Vector3d start = {0, 0, 0};  // b0: the joint, bind pose, model space
@@ -49,6 +51,8 @@ struct BoneSegment {
   double along(const Eigen::Vector3d& p) const;
 };
 
+// The mesh split into one part per joint; indices are the rig's vertex,
+// triangle and joint indices.
 struct BonePartition {
   std::vector<int> vertex_joint;  // #V: the joint each vertex belongs to
   // Per joint (#joints): the part's vertices and triangles (a triangle
@@ -62,6 +66,7 @@ struct BonePartition {
   // One sentence per skin joint without vertices or degenerate bone.
   std::vector<std::string> warnings;
 
+  // True when `joint` is a skeleton index whose part has vertices.
   bool hasPart(int joint) const {
     return joint >= 0 && joint < static_cast<int>(part_vertices.size()) &&
            !part_vertices[joint].empty();

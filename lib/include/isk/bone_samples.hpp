@@ -27,15 +27,18 @@
 
 namespace isk {
 
+// How a part is sampled (the paper's values by default).
 struct BoneSamplingOptions {
   int target_samples = 50;     // Poisson-disk target per part
-  double culling_h = 0.05;     // eq. (2)
+  double culling_h = 0.05;     // eq. (2), a fraction of the bone length
   bool closure_points = true;  // add closure points at touching ends
   unsigned seed = 0x15c0ffee;  // mixed with the joint index
 };
 
+// The Hermite samples (model space, bind pose, unit outward normals) of
+// one part.
 struct BoneSamples {
-  int joint = -1;
+  int joint = -1;          // the part's joint (skeleton index)
   HermiteSamples surface;  // Poisson-disk samples kept after culling
   HermiteSamples closure;  // 0, 1 or 2 closure points
   int culled = 0;          // surface samples dropped by eq. (2)
@@ -44,7 +47,9 @@ struct BoneSamples {
   HermiteSamples all() const;
 };
 
-// Samples the part of `joint`. An empty part gives no samples.
+// Samples the part of `joint` (a skeleton index) of `mesh` (the rig's rest
+// mesh, as partitioned by `partition`). An empty part gives no samples.
+// Deterministic for a given seed; does not throw for valid inputs.
 BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
                            int joint, const BoneSamplingOptions& options = {});
 

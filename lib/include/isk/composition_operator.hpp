@@ -54,6 +54,8 @@
 
 namespace isk {
 
+// How two bones' fields combine at their joint: max (union), the
+// gradient-based blend (a fillet in the fold) or the bulge-in-contact.
 enum class CompositionOperator { kUnion, kBlend, kBulge };
 
 // "union", "blend", "bulge".
@@ -61,7 +63,9 @@ const char* compositionOperatorName(CompositionOperator op);
 // Parses one of the names above; false for anything else.
 bool parseCompositionOperator(const std::string& name, CompositionOperator* op);
 
+// theta at which every operator is the union, radians.
 constexpr double kThetaUnion = 0.78539816339744830962;  // pi / 4
+// A of the bulge: its largest swelling, in field units.
 constexpr double kBulgeAmplitude = 0.1;
 
 // An operator's value and its partial derivatives.
@@ -92,6 +96,7 @@ struct ThetaController {
   float at(float alpha) const;
 };
 
+// Samples of the controllers below over alpha in [0, pi].
 constexpr int kControllerSamples = 65;  // pi/4 and pi/2 fall on samples
 
 // theta = kThetaUnion everywhere.
@@ -118,6 +123,7 @@ struct OperatorTable {
   // index i + N * (j + N * k).
   std::vector<float> nodes;
 
+  // Size of `nodes` in bytes (4 * resolution^3 floats).
   size_t bytes() const { return nodes.size() * sizeof(float); }
   // g, dg/df1 and dg/df2 at (f1, f2, theta) from the table: the order of
   // (f1, f2) picks the branch (f1 >= f2: x = f1), then trilinear

@@ -14,6 +14,7 @@
 
 namespace isk {
 
+// One character's geometric skinning on the CPU (single thread).
 class CpuSkinning {
  public:
   // Validates the mesh and weights (isk::Error kInvalidArgument) and keeps a
@@ -36,7 +37,9 @@ class CpuSkinning {
   void readPositions(Matrix3Xf& out) const { out = positions_; }
   void readNormals(Matrix3Xf& out) const { out = normals_; }
 
+  // Milliseconds per stage of the last run.
   const SkinningStageTimes& lastTimes() const { return times_; }
+  // #V of the mesh given to the constructor.
   int vertexCount() const { return static_cast<int>(rest_positions_.rows()); }
 
  private:

@@ -5,6 +5,7 @@
 
 namespace isk {
 
+// q = real + eps * dual: rotation `real` (unit), then translation t.
 struct DualQuaternion {
   Eigen::Quaternionf real = Eigen::Quaternionf::Identity();  // rotation
   Eigen::Quaternionf dual = Eigen::Quaternionf(0, 0, 0, 0);  // 0.5 * t * real
@@ -13,8 +14,11 @@ struct DualQuaternion {
   // linear part (any scale or shear is dropped), translation as is.
   static DualQuaternion fromTransform(const Eigen::Affine3f& transform);
 
+  // t = 2 * dual * conj(real).
   Eigen::Vector3f translation() const;
+  // R p + t (expects a unit real part).
   Eigen::Vector3f transformPoint(const Eigen::Vector3f& p) const;
+  // R v, no translation (directions, normals).
   Eigen::Vector3f rotateVector(const Eigen::Vector3f& v) const;
 };
 

@@ -11,6 +11,7 @@
 
 namespace isk {
 
+// What kind of failure an isk::Error is.
 enum class ErrorCode {
   kInvalidArgument,  // the caller passed something malformed (sizes, indices)
   kIo,               // a file could not be read or written
@@ -26,6 +27,7 @@ const char* errorCodeName(ErrorCode code);
 // Name of an OpenCL status code ("CL_OUT_OF_RESOURCES"), or "CL_ERROR(<n>)".
 std::string clStatusName(int status);
 
+// The one exception type of the library; what() is the message.
 class Error : public std::runtime_error {
  public:
   Error(ErrorCode code, const std::string& message, int cl_status = 0)

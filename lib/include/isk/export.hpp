@@ -13,10 +13,13 @@
 
 namespace isk {
 
+// OBJ: text, "v x y z", "vn", "f a//a b//b c//c" (1-based). PLY: binary
+// little endian, float x y z (nx ny nz), uchar-counted int triangles.
 enum class MeshFormat { kObj, kPly };
 
 // Throws isk::Error(kIo) naming the path when it cannot be written.
-// `normals` may be null (no normals written).
+// `positions` and `normals` #V by 3, `triangles` #F by 3 (0-based, written
+// as the format wants); `normals` may be null (no normals written).
 void writeMesh(const std::string& path, MeshFormat format,
                const Matrix3Xf& positions, const Matrix3Xf* normals,
                const TriangleMatrix& triangles);

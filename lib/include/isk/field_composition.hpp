@@ -39,6 +39,7 @@
 
 namespace isk {
 
+// Which operator each joint uses and how its theta is controlled.
 struct CompositionOptions {
   // The operator of every joint not named in `joint_operators`.
   CompositionOperator default_operator = CompositionOperator::kUnion;
@@ -64,7 +65,8 @@ struct FieldPair {
   int table = -1;       // index into Composition::tables; -1 for union
 };
 
-// Immutable, ready to upload.
+// The operators of a character's joints, built by buildComposition for its
+// FieldGridSet. Immutable, ready to upload.
 struct Composition {
   std::vector<FieldPair> pairs;              // every joint pair, joint order
   std::vector<int> blended_pairs;            // indices of the non-union pairs
@@ -75,6 +77,7 @@ struct Composition {
 
   // The operator of the pair at joint j (union when j has none).
   CompositionOperator operatorAt(int joint) const;
+  // Bytes of the operator tables (what the device holds for them).
   size_t tableBytes() const;
 };
 
@@ -95,7 +98,8 @@ Composition buildComposition(
     const CompositionOptions& options = {},
     const std::function<void(float)>& progress = nullptr);
 
-// A bounding sphere of field i's support box, bone frame: centre, radius.
+// A bounding sphere of a field's support box, bone frame: centre xyz and
+// radius w (model units).
 Eigen::Vector4f fieldBoundingSphere(const FieldGrid& grid);
 
 // Each blend or bulge pair's joint rotation from its bind pose (radians, in

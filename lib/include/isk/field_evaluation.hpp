@@ -64,6 +64,7 @@ class ComposedFieldSampler {
   const std::vector<Eigen::Vector4f>& spheres() const { return spheres_; }
   // Model -> bone transform of each field at the pose.
   const std::vector<Eigen::Affine3f>& toBone() const { return to_bone_; }
+  // #fields of the FieldGridSet.
   int fieldCount() const { return fields_->fieldCount(); }
 
  private:
@@ -78,6 +79,9 @@ class ComposedFieldSampler {
   std::vector<float> joint_angles_;
 };
 
+// The composed field (and optionally every field) at many posed points: the
+// CPU reference of ClFieldEvaluation. The pointed-to inputs must outlive
+// run().
 struct FieldEvaluationJob {
   const FieldGridSet* fields = nullptr;
   const TransformList* skinning = nullptr;  // #joints
@@ -88,6 +92,8 @@ struct FieldEvaluationJob {
   // Optional: resized to (#P * #fields) by 4, row p * #fields + i.
   Matrix4Xf* out_per_field = nullptr;
 
+  // Names the first missing input or mismatched size (pose length, points
+  // shape, a composition built for other fields).
   Validation validate() const;
   // Throws isk::Error(kInvalidArgument) when validate() fails.
   void run() const;
@@ -103,6 +109,8 @@ Matrix4Xf evaluateComposedField(const FieldGridSet& fields,
 // Every vertex's value of the composed field at the bind pose (the iso value
 // it is projected back to while animating), #V. `outside` (when given)
 // receives the vertices outside every field's support (value 0).
+// `rest_positions`: #V by 3, model space. Throws isk::Error(kInvalidArgument)
+// like evaluateComposedField.
 std::vector<float> computeIsoValues(const FieldGridSet& fields,
                                     const Matrix3Xf& rest_positions,
                                     const Composition* composition,

@@ -16,17 +16,24 @@
 
 namespace isk {
 
+// One bone's baked field. Lengths in model units.
 struct FieldGrid {
-  int joint = -1;
+  int joint = -1;       // the field's joint (skeleton index)
   int resolution = 32;  // nodes per axis
+  // Bone frame (origin at the joint, x along the bone) to model space at the
+  // bind pose.
   Eigen::Isometry3f bone_to_model = Eigen::Isometry3f::Identity();
-  Eigen::Vector3f box_min = {0, 0, 0};  // bone frame
+  Eigen::Vector3f box_min = {0, 0, 0};  // bone frame: the support box
   Eigen::Vector3f box_max = {0, 0, 0};
-  std::vector<float> nodes;  // resolution^3 * 4 floats
+  // resolution^3 * 4 floats: (value, gradient x y z) per node, node
+  // (i, j, k) at floats 4 * (i + N * (j + N * k)).
+  std::vector<float> nodes;
 
+  // Distance between neighbouring nodes along x, y and z (bone frame).
   Eigen::Vector3f spacing() const {
     return (box_max - box_min) / static_cast<float>(resolution - 1);
   }
+  // Size of `nodes` in bytes.
   size_t bytes() const { return nodes.size() * sizeof(float); }
 
   // Trilinear sample at a bone-frame point: value and bone-frame gradient
@@ -34,7 +41,8 @@ struct FieldGrid {
   Eigen::Vector4f sampleLocal(const Eigen::Vector3f& local) const;
 };
 
-// Bakes `field` at `resolution`^3 nodes (resolution >= 2).
+// Bakes `field` at `resolution`^3 nodes over its support box. Throws
+// isk::Error(kInvalidArgument) for a resolution below 2.
 FieldGrid bakeField(const BoneField& field, int resolution = 32);
 
 // All baked fields of a character, ready to upload.
@@ -44,6 +52,7 @@ struct FieldGridSet {
   int resolution = 32;
 
   int fieldCount() const { return static_cast<int>(grids.size()); }
+  // Bytes of every grid's nodes.
   size_t bytes() const;
 };
 

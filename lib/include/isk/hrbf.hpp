@@ -25,10 +25,12 @@ namespace isk {
 // Hermite data: points with unit outward normals.
 struct HermiteSamples {
   std::vector<Eigen::Vector3d> positions;
-  std::vector<Eigen::Vector3d> normals;
+  std::vector<Eigen::Vector3d> normals;  // as many as positions
+  // Number of samples.
   int size() const { return static_cast<int>(positions.size()); }
 };
 
+// A fitted HRBF: d(x) of eq. (1). Default-constructed: d = 0 everywhere.
 class Hrbf {
  public:
   // Fits the samples (at least 4 after merging duplicates: otherwise
@@ -37,12 +39,14 @@ class Hrbf {
   static Hrbf fit(const HermiteSamples& samples, const std::string& what,
                   std::vector<std::string>* warnings = nullptr);
 
-  // d(x) and grad d(x), in the samples' space.
+  // d(x) and grad d(x), in the samples' space (d in its length units,
+  // negative inside). Never throw.
   double value(const Eigen::Vector3d& x) const;
   Eigen::Vector3d gradient(const Eigen::Vector3d& x) const;
   void evaluate(const Eigen::Vector3d& x, double& value,
                 Eigen::Vector3d& gradient) const;
 
+  // #C centres c_k after merging duplicates, in the samples' space.
   int centreCount() const { return static_cast<int>(centres_.size()); }
   const std::vector<Eigen::Vector3d>& centres() const { return centres_; }
   // Largest |d(c_k)| and |grad d(c_k) - n_k| of the fit (in the samples'
@@ -62,8 +66,8 @@ class Hrbf {
   }
   const std::vector<double>& lambdas() const { return lambda_; }
   const std::vector<Eigen::Vector3d>& betas() const { return beta_; }
-  const Eigen::Vector3d& linear() const { return poly_a_; }
-  double constant() const { return poly_b_; }
+  const Eigen::Vector3d& linear() const { return poly_a_; }  // a
+  double constant() const { return poly_b_; }                // b
 
  private:
   std::vector<Eigen::Vector3d> centres_;
@@ -80,7 +84,8 @@ class Hrbf {
 };
 
 // The re-parameterization t_r of section 4.1: maps d in [-r, r] smoothly onto
-// [1, 0]; t_r(-r) = 1, t_r(0) = 0.5, t_r(r) = 0, zero slope at +-r.
+// [1, 0]; t_r(-r) = 1, t_r(0) = 0.5, t_r(r) = 0, zero slope at +-r; 1 below
+// -r and 0 above r. d and r (> 0) in the same length units.
 double reparameterize(double d, double r);
 // dt_r/dd = (-15/16)(1/r)((d/r)^4 - 2(d/r)^2 + 1) inside, 0 outside.
 double reparameterizeDerivative(double d, double r);

@@ -22,9 +22,10 @@
 
 namespace isk {
 
+// Everything buildImplicitFields can be told; the defaults are the paper's.
 struct ImplicitFieldsOptions {
-  BoneSamplingOptions sampling;
-  int grid_resolution = 32;  // nodes per axis of each baked field, 2..256
+  BoneSamplingOptions sampling;  // Poisson-disk samples, culling, closure
+  int grid_resolution = 32;      // nodes per axis of each baked field, 2..256
   // Operators per joint (union by default); the iso values are taken in
   // the composed field.
   CompositionOptions composition;
@@ -38,29 +39,38 @@ struct ImplicitFieldsOptions {
   std::function<void(const char* stage, float fraction)> progress;
 };
 
+// Milliseconds spent in each stage of buildImplicitFields.
 struct ImplicitFieldsTimes {
   double partition_ms = 0, sampling_ms = 0, fitting_ms = 0, baking_ms = 0,
          operators_ms = 0, iso_ms = 0;
+  // Sum of the stages.
   double total() const {
     return partition_ms + sampling_ms + fitting_ms + baking_ms + operators_ms +
            iso_ms;
   }
 };
 
+// A character's implicit fields, every stage's result. "Per field" arrays
+// have one entry per joint with a part (partition.field_joints order).
 struct ImplicitFields {
   BonePartition partition;
   std::vector<BoneSamples> samples;  // per field
-  std::vector<BoneField> fields;     // per field, joint order
-  FieldGridSet grids;                // per field
-  Composition composition;
-  std::vector<float> iso_values;      // #V
+  std::vector<BoneField> fields;     // per field, joint order (analytic)
+  FieldGridSet grids;                // per field (baked: what is evaluated)
+  Composition composition;           // the operator of each joint pair
+  // #V: each vertex's composed field value at the bind pose, the iso value
+  // tracking brings it back to.
+  std::vector<float> iso_values;
   std::vector<int> outside_vertices;  // vertices outside every support
+  // One sentence each: empty or degenerate parts, re-sampled or dropped
+  // fields, regularised fits, named joints without a pair.
   std::vector<std::string> warnings;
   ImplicitFieldsTimes times;
 };
 
 // Validates `rig` and options (isk::Error kInvalidArgument, naming what is
-// wrong) and builds its fields.
+// wrong) and builds its fields. Seconds for a character of a few thousand
+// vertices; deterministic for the same rig and options.
 ImplicitFields buildImplicitFields(const Rig& rig,
                                    const ImplicitFieldsOptions& options = {});
 

@@ -34,6 +34,7 @@
 
 namespace isk {
 
+// How an implicit skinner is built and what each frame does.
 struct ImplicitSkinnerOptions {
   // Samples per bone, grid resolution, operators per joint, progress, ...
   ImplicitFieldsOptions fields;
@@ -50,17 +51,21 @@ struct ImplicitSkinnerOptions {
   Validation validate() const;
 };
 
-// Milliseconds per stage of one frame.
+// Milliseconds per stage of one frame (profiling events on OpenCL, host wall
+// time on the CPU).
 struct ImplicitStageTimes {
   double upload_ms = 0;         // joint transforms
   double skinning_ms = 0;       // base skinning
   TrackingStageTimes tracking;  // projection, relaxation, smoothing, normals
   double readback_ms = 0;       // last readPositions + readNormals
+  // Sum of the stages.
   double total() const {
     return upload_ms + skinning_ms + tracking.total() + readback_ms;
   }
 };
 
+// Implicit skinning of one character on an OpenCL device (see the top of
+// this file). Not copyable; movable.
 class ImplicitSkinner {
  public:
   // Builds the rig's fields with options.fields and uploads. Throws
@@ -79,7 +84,8 @@ class ImplicitSkinner {
   // wrong size or with non-finite transforms.
   void run(const TransformList& skinning);
 
-  // Blocking reads of the last frame (#V by 3).
+  // Blocking reads of the last frame (#V by 3, model space; unit normals).
+  // Throw isk::Error(kOpenCl) naming the call when the device fails.
   void readPositions(Matrix3Xf& out);
   void readNormals(Matrix3Xf& out);
   // The same results on the device: #V * 3 packed floats.
@@ -88,7 +94,10 @@ class ImplicitSkinner {
   // Vertices stopped at a contact in the last frame (reads the states).
   int contactCount();
 
+  // Stage times of the last run() (readback: of the last reads).
   const ImplicitStageTimes& lastTimes() const { return times_; }
+  // What the skinner was built from, and its parts (for stage-by-stage use,
+  // interop and tests).
   const ImplicitFields& fields() const { return *fields_; }
   const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
   ClSkinning& skinning() { return *skinning_; }
@@ -96,7 +105,7 @@ class ImplicitSkinner {
   ClSurfaceTracking& tracking() { return *tracking_; }
   const ImplicitSkinnerOptions& options() const { return options_; }
   ClContext& context() { return *context_; }
-  int vertexCount() const { return tracking_mesh_->vertexCount(); }
+  int vertexCount() const { return tracking_mesh_->vertexCount(); }  // #V
 
  private:
   std::shared_ptr<ClContext> context_;
@@ -110,20 +119,29 @@ class ImplicitSkinner {
   ImplicitStageTimes times_;
 };
 
-// The CPU reference of ImplicitSkinner (CpuSkinning + CpuSurfaceTracking).
+// The CPU reference of ImplicitSkinner (CpuSkinning + CpuSurfaceTracking):
+// single thread, the same calls and results up to float rounding. Its
+// options.storage is ignored.
 class CpuImplicitSkinner {
  public:
+  // As ImplicitSkinner's constructors, without a device. Throws
+  // isk::Error(kInvalidArgument) naming what is wrong in the rig or options.
   CpuImplicitSkinner(const Rig& rig,
                      const ImplicitSkinnerOptions& options = {});
   CpuImplicitSkinner(const Rig& rig,
                      std::shared_ptr<const ImplicitFields> fields,
                      const ImplicitSkinnerOptions& options = {});
 
+  // One frame: #joints skinning transforms. Throws
+  // isk::Error(kInvalidArgument) for a pose of the wrong size or with
+  // non-finite transforms.
   void run(const TransformList& skinning);
+  // Results of the last frame: #V by 3, model space; unit normals.
   const Matrix3Xf& positions() const { return tracking_->positions(); }
   const Matrix3Xf& normals() const { return tracking_->normals(); }
   void readPositions(Matrix3Xf& out) const { out = positions(); }
   void readNormals(Matrix3Xf& out) const { out = normals(); }
+  // Vertices stopped at a contact in the last frame.
   int contactCount() const;
 
   const ImplicitStageTimes& lastTimes() const { return times_; }
@@ -131,7 +149,7 @@ class CpuImplicitSkinner {
   const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
   CpuSkinning& skinning() { return *skinning_; }
   CpuSurfaceTracking& tracking() { return *tracking_; }
-  int vertexCount() const { return tracking_mesh_->vertexCount(); }
+  int vertexCount() const { return tracking_mesh_->vertexCount(); }  // #V
 
  private:
   ImplicitSkinnerOptions options_;

@@ -20,6 +20,7 @@
 
 namespace isk {
 
+// What importRig can be told.
 struct ImportOptions {
   // Weight sums further than this from 1 are reported when normalized.
   float weight_sum_tolerance = 1e-3f;

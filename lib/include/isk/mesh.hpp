@@ -14,6 +14,7 @@
 
 namespace isk {
 
+// Where one source mesh's vertices and triangles sit in the merged Mesh.
 struct MeshPart {
   std::string name;  // mesh name in the source file
   int first_vertex = 0;
@@ -22,14 +23,17 @@ struct MeshPart {
   int triangle_count = 0;
 };
 
+// One skin: every triangle mesh of the source, merged.
 struct Mesh {
   Matrix3Xf positions;       // #V by 3, model space
   Matrix3Xf normals;         // #V by 3, unit length
   TriangleMatrix triangles;  // #F by 3, counter-clockwise seen from outside
   std::vector<MeshPart> parts;
 
-  int vertexCount() const { return static_cast<int>(positions.rows()); }
-  int triangleCount() const { return static_cast<int>(triangles.rows()); }
+  int vertexCount() const { return static_cast<int>(positions.rows()); }  // #V
+  int triangleCount() const {                                             // #F
+    return static_cast<int>(triangles.rows());
+  }
 
   // Checks shapes, index ranges and finiteness; names the first bad vertex or
   // triangle (and its part).

@@ -26,6 +26,7 @@
 
 namespace isk {
 
+// The kind of a vertex's ring (see above).
 enum class RingKind : uint8_t {
   kClosed = 0,
   kBoundary = 1,
@@ -36,6 +37,7 @@ enum class RingKind : uint8_t {
 
 const char* ringKindName(RingKind kind);  // "closed", "boundary", ...
 
+// The one-ring of every vertex, in compressed rows.
 struct OneRings {
   std::vector<int> representative;  // #V: smallest index at the same spot
   std::vector<uint32_t> offsets;    // #V + 1, rows of `neighbours`
@@ -43,6 +45,7 @@ struct OneRings {
   std::vector<RingKind> kinds;      // #V
 
   int vertexCount() const { return static_cast<int>(kinds.size()); }
+  // Number of vertices of that kind.
   int count(RingKind kind) const;
 
   // Welds, then builds the rings of `triangles` (#F by 3) over `positions`
@@ -63,12 +66,16 @@ enum class RelaxationRule : uint8_t {
                      // open fan has no centroid that keeps the border)
 };
 
+// "mean value", "clamped", "uniform", "fixed".
 const char* relaxationRuleName(RelaxationRule rule);
 
+// Per-vertex weights of tangential relaxation (eq. 5): v moves toward
+// sum_j w_j q_j over its ring, the weights of a ring summing to 1.
 struct RelaxationWeights {
   std::vector<float> weights;         // aligned with OneRings::neighbours
   std::vector<RelaxationRule> rules;  // #V
 
+  // Number of vertices under that rule.
   int count(RelaxationRule rule) const;
   // One line: "12000 mean value, 30 clamped, 2 uniform, 40 fixed".
   std::string describe() const;
@@ -76,6 +83,7 @@ struct RelaxationWeights {
   // Mean value coordinates of each representative's ring, projected on its
   // tangent plane at the rest pose (the plane normal to the ring's area-
   // weighted normal), so that v = sum_j w_j q_j there.
+  // `rest_positions`: #V by 3, those the rings were built from.
   static RelaxationWeights build(const OneRings& rings,
                                  const Matrix3Xf& rest_positions);
 };

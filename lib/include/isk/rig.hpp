@@ -12,12 +12,15 @@
 
 namespace isk {
 
+// Everything skinning needs, in model space (see skeleton.hpp); built by
+// importRig (isk/import.hpp) or the procedural builders
+// (isk/procedural.hpp), or filled by the application (then validate()).
 struct Rig {
-  std::string source;  // file path or "builtin:NAME"
-  Mesh mesh;
-  Skeleton skeleton;
-  SkinWeights weights;
-  std::vector<AnimationClip> clips;
+  std::string source;                // file path or "builtin:NAME"
+  Mesh mesh;                         // the bind-pose skin, #V vertices
+  Skeleton skeleton;                 // #joints joints
+  SkinWeights weights;               // #V rows of joint indices and weights
+  std::vector<AnimationClip> clips;  // may be empty
   // Things fixed or ignored while loading (weights normalized, meshes
   // skipped...), one sentence each.
   std::vector<std::string> warnings;
@@ -29,7 +32,8 @@ struct Rig {
   // Index of the clip named `name`, -1 if none.
   int findClip(const std::string& name) const;
 
-  // Diagonal of the mesh's axis-aligned bounding box (0 for an empty mesh).
+  // Diagonal of the mesh's axis-aligned bounding box (0 for an empty mesh),
+  // model units.
   float boundingBoxDiagonal() const;
 };
 

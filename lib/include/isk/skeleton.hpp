@@ -16,22 +16,25 @@
 
 namespace isk {
 
+// One joint (a node of the file's hierarchy).
 struct Joint {
-  std::string name;
+  std::string name;              // the node name in the file; may be empty
   int parent = -1;               // index of the parent joint, -1 for roots
   Eigen::Affine3f rest_local;    // local to parent (or to root_parent)
   Eigen::Affine3f inverse_bind;  // model space -> joint space at bind pose
   bool is_skin_joint = false;    // referenced by the skin weights of the file
 };
 
+// The joints of a rig, with their hierarchy and bind pose.
 struct Skeleton {
   std::vector<Joint> joints;  // parents precede children
   // Transform of the scene above the skeleton's roots (fixed, not animated).
   Eigen::Affine3f root_parent = Eigen::Affine3f::Identity();
 
   int jointCount() const { return static_cast<int>(joints.size()); }
+  // Joints with is_skin_joint set.
   int skinJointCount() const;
-  // Index of the joint named `name`, -1 if none.
+  // Index of the joint named `name` (the first, if several), -1 if none.
   int find(const std::string& name) const;
 
   // Bind pose global transforms (inverse of inverse_bind), #joints.

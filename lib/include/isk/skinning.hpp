@@ -19,6 +19,7 @@
 
 namespace isk {
 
+// Geometric skinning: linear blend (LBS) or dual quaternion (DQS).
 enum class SkinningMethod { kLinearBlend, kDualQuaternion };
 
 // Milliseconds spent per stage of one frame (ClSkinning: from OpenCL
@@ -37,6 +38,8 @@ const char* skinningMethodName(SkinningMethod method);  // "lbs" / "dqs"
 std::vector<float> packJointTransforms(SkinningMethod method,
                                        const TransformList& skinning);
 
+// One frame of geometric skinning on the CPU (single thread). The pointed-to
+// inputs must outlive run().
 struct SkinningJob {
   SkinningMethod method = SkinningMethod::kDualQuaternion;
   const Matrix3Xf* rest_positions = nullptr;  // #V by 3, bind pose
@@ -46,6 +49,8 @@ struct SkinningJob {
   Matrix3Xf* out_positions = nullptr;         // resized to #V by 3
   Matrix3Xf* out_normals = nullptr;           // resized to #V by 3
 
+  // Names the first missing input or mismatched size, or a non-finite
+  // transform.
   Validation validate() const;
   // Throws isk::Error(kInvalidArgument) when validate() fails.
   void run() const;

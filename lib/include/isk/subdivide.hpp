@@ -11,7 +11,8 @@
 namespace isk {
 
 // Applies `levels` rounds of 1-to-4 subdivision (vertex count grows about 4x
-// per level). Clips and skeleton are kept.
+// per level). Clips and skeleton are kept. Throws isk::Error(kInvalidArgument)
+// for `levels` outside 0..6.
 Rig subdivideRig(const Rig& rig, int levels);
 
 }  // namespace isk

@@ -75,6 +75,8 @@
 
 namespace isk {
 
+// The parameters of tracking (above); the defaults are the paper's values
+// where it gives one.
 struct SurfaceTrackingOptions {
   // Rounds of (projection_steps projection steps, then one relaxation). The
   // paper relaxes after each pair of projection steps.
@@ -126,6 +128,7 @@ enum class TrackState : uint8_t {
   kCrease = 5,     // converged on another part's surface (home_contact)
 };
 
+// "marching", "converged", "contact", ... (the enumerator without its k).
 const char* trackStateName(TrackState state);
 
 // The static per-vertex data of tracking, built once per character.
@@ -136,13 +139,13 @@ struct TrackingMesh {
 
   // A blend or bulge pair of the composition, for activePartners.
   struct PartnerPair {
-    int field_a = -1, field_b = -1;
-    int joint_a = -1, joint_b = -1;
-    bool blend = false;
+    int field_a = -1, field_b = -1;  // field indices: parent, child
+    int joint_a = -1, joint_b = -1;  // their joints (skeleton indices)
+    bool blend = false;              // a blend pair (false: bulge)
   };
 
-  OneRings rings;
-  RelaxationWeights relaxation;
+  OneRings rings;                 // welded one-rings of the rest mesh
+  RelaxationWeights relaxation;   // eq. 5's weights over those rings
   std::vector<float> iso_values;  // #V, 0: untracked
   std::vector<int> home_field;    // #V: field of the vertex's bone, -1
   // #V: max(0, o - h) at the bind pose, o the largest other field (all of
@@ -163,6 +166,7 @@ struct TrackingMesh {
   std::vector<int> march_order;
 
   int vertexCount() const { return static_cast<int>(iso_values.size()); }
+  // Vertices that march: representatives with an iso value > 0.
   int trackedCount() const;
 
   // Validates sizes (isk::Error kInvalidArgument) and builds the rings,
@@ -219,8 +223,8 @@ bool posedBoxesMeet(const FieldGrid& a, const Eigen::Affine3f& a_to_bone,
 // activePartners list; null: none), from the #fields samples at a point
 // (value, gradient; zero when none).
 struct HomeSamples {
-  Eigen::Vector4f home = Eigen::Vector4f::Zero();
-  Eigen::Vector4f other = Eigen::Vector4f::Zero();
+  Eigen::Vector4f home = Eigen::Vector4f::Zero();   // value, gradient
+  Eigen::Vector4f other = Eigen::Vector4f::Zero();  // value, gradient
 };
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
                         int vertex, const Eigen::Vector4f* per_field);
@@ -230,6 +234,7 @@ struct TrackingCounts {
   int marching = 0, converged = 0, contact = 0, lost = 0, untracked = 0,
       crease = 0;
 };
+// How many vertices are in each state.
 TrackingCounts countStates(const std::vector<TrackState>& states);
 
 // Milliseconds per stage of one frame (host wall time on the CPU, profiling
@@ -239,6 +244,7 @@ struct TrackingStageTimes {
   double relaxation_ms = 0;  // all relaxation steps
   double smoothing_ms = 0;   // beta diffusion and Laplacian steps
   double normals_ms = 0;     // seam copies and normals
+  // Sum of the stages.
   double total() const {
     return projection_ms + relaxation_ms + smoothing_ms + normals_ms;
   }
@@ -249,6 +255,8 @@ struct TrackingStageTimes {
 // outlive it.
 class CpuSurfaceTracking {
  public:
+  // Throws isk::Error(kInvalidArgument) for bad options (naming the option)
+  // or a tracking mesh not built by TrackingMesh::build.
   CpuSurfaceTracking(const FieldGridSet& fields, const Composition* composition,
                      const TrackingMesh& mesh,
                      const SurfaceTrackingOptions& options = {});
@@ -256,12 +264,14 @@ class CpuSurfaceTracking {
   // Stage by stage (what run() chains; tests call them one at a time).
   // begin: the frame's pose (#joints skinning transforms) and the skinned
   // positions (#V by 3) and normals (fallback of the normals stage).
+  // Throws isk::Error(kInvalidArgument) for sizes that do not match the
+  // mesh or a pose shorter than the fields' joints.
   void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
              const Matrix3Xf& skinned_normals);
-  void project(int steps);
-  void relax();
-  void smooth();  // beta, its diffusion and the Laplacian steps
-  void finish();  // seam copies and normals
+  void project(int steps);  // `steps` projection steps (eq. 4)
+  void relax();             // one relaxation step (eq. 5, 6)
+  void smooth();            // beta, its diffusion and the Laplacian steps
+  void finish();            // seam copies and normals
 
   // The whole frame: begin, rounds x (project, relax), smooth, finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
@@ -269,12 +279,14 @@ class CpuSurfaceTracking {
 
   // Replaces the working state (tests: both backends from the same input).
   // prev_gradients: #V by 4, xyz the previous step's unit gradient, w 1 when
-  // set.
+  // set. Throws isk::Error(kInvalidArgument) unless every size is #V.
   void setState(const Matrix3Xf& positions,
                 const std::vector<TrackState>& states,
                 const Matrix4Xf& prev_gradients,
                 const Matrix4Xf* relax_frames = nullptr);
 
+  // The working state: #V by 3 positions and normals (model space, normals
+  // of unit length after finish()), #V states.
   const Matrix3Xf& positions() const { return positions_; }
   const Matrix3Xf& normals() const { return normals_; }
   const std::vector<TrackState>& states() const { return states_; }
@@ -286,6 +298,7 @@ class CpuSurfaceTracking {
   // the unit normal; zero before any step): the relaxation's tangent plane
   // and mu, so that relaxation samples no field.
   const Matrix4Xf& relaxFrames() const { return relax_frames_; }
+  // Milliseconds per stage of the last run().
   const TrackingStageTimes& lastTimes() const { return times_; }
   const SurfaceTrackingOptions& options() const { return options_; }
 

@@ -9,9 +9,12 @@
 
 namespace isk {
 
+// Ok, or failed with a reason. Cheap to copy; never throws by itself.
 class Validation {
  public:
+  // Success.
   static Validation ok() { return Validation(); }
+  // Failure with a reason naming what is wrong ("vertex 12: NaN weight").
   static Validation fail(std::string reason) {
     Validation v;
     v.ok_ = false;
@@ -19,6 +22,7 @@ class Validation {
     return v;
   }
 
+  // True when ok.
   explicit operator bool() const { return ok_; }
   bool isOk() const { return ok_; }
   // Empty when isOk().

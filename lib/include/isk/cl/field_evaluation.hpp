@@ -55,11 +55,16 @@
 
 namespace isk {
 
+// Where the grids and operator tables live on the device (see above).
 enum class FieldStorage { kAuto, kImage, kBuffer };
 
 // "auto", "image", "buffer".
 const char* fieldStorageName(FieldStorage storage);
 
+// Errors: every call throws isk::Error(kOpenCl) naming the OpenCL call when
+// the device fails; calls taking a pose throw kInvalidArgument for one of
+// the wrong size or with non-finite transforms, evaluate() for points of
+// the wrong shape.
 class ClFieldEvaluation {
  public:
   // float4 per field in the params buffer (kernels/fields.cl's layout).
@@ -112,6 +117,7 @@ class ClFieldEvaluation {
   // "-DISK_FIELDS_IMAGE=1" or "-DISK_FIELDS_IMAGE=0".
   std::string buildOptions() const;
 
+  // The storage used (kImage or kBuffer) and why, in words.
   FieldStorage storage() const { return storage_; }
   const std::string& storageReason() const { return storage_reason_; }
   // Field data: fieldImage() on the image path, fieldBuffer() on the buffer
@@ -131,8 +137,8 @@ class ClFieldEvaluation {
   // Blend and bulge pairs evaluated per point, operator tables uploaded.
   int pairCount() const { return pair_count_; }
   int tableCount() const { return table_count_; }
-  int resolution() const { return resolution_; }
-  int jointCount() const { return joint_count_; }
+  int resolution() const { return resolution_; }   // grid nodes per axis
+  int jointCount() const { return joint_count_; }  // pose length expected
   // Tiles of the image atlas per axis (1 1 1 on the buffer path).
   const std::array<int, 3>& atlasTiles() const { return tiles_; }
   // Device memory held: field data (the atlas with its unused tiles),
@@ -146,6 +152,7 @@ class ClFieldEvaluation {
   double lastKernelMs() const { return kernel_ms_; }
   double lastUploadMs() const { return upload_ms_; }
 
+  // The context everything lives in (shared with the caller).
   ClContext& context() { return *context_; }
   const ClContext& context() const { return *context_; }
   std::shared_ptr<ClContext> sharedContext() const { return context_; }

@@ -26,6 +26,7 @@
 
 namespace isk {
 
+// What listClDevices() and ClContext::info() say about a device.
 struct ClDeviceInfo {
   int index = -1;  // position in listClDevices()
   std::string platform;
@@ -41,6 +42,9 @@ struct ClDeviceInfo {
 // platform is installed (never throws for that).
 std::vector<ClDeviceInfo> listClDevices();
 
+// One OpenCL context, device and in-order queue, and the programs built on
+// them. program() is thread-safe; share the context (std::shared_ptr)
+// between the skinners of several characters.
 class ClContext {
  public:
   // Picks a device as described above and creates a context and an in-order
@@ -64,10 +68,14 @@ class ClContext {
   bool profilingEnabled() const { return profiling_; }
 
   // The built program of embedded kernel file `kernel_file` (name without
-  // .cl), built with buildOptions(extra_options); cached.
+  // .cl), built with buildOptions(extra_options); cached. Throws
+  // isk::Error(kInvalidArgument) for an unknown file, kOpenCl with the build
+  // log when the build fails.
   cl::Program program(const std::string& kernel_file,
                       const std::string& extra_options = "");
+  // The options every build gets (see above), then `extra_options`.
   std::string buildOptions(const std::string& extra_options = "") const;
+  // Programs built so far by this context.
   int cachedProgramCount() const;
 
  private:

@@ -20,6 +20,9 @@
 
 namespace isk {
 
+// Errors: every call throws isk::Error(kOpenCl) naming the OpenCL call when
+// the device fails; run() and enqueue() throw kInvalidArgument for a pose of
+// the wrong size or with non-finite transforms.
 class ClSkinning {
  public:
   // Validates the mesh and weights (isk::Error kInvalidArgument) and uploads
@@ -39,6 +42,7 @@ class ClSkinning {
   // lastTimes(). Without profiling it is run().
   void enqueue(SkinningMethod method, const TransformList& skinning,
                bool recompute_normals = true);
+  // Waits for the last enqueue() and fills lastTimes().
   void collectTimes();
 
   // Blocking reads of the last run's results (#V by 3).
@@ -54,6 +58,7 @@ class ClSkinning {
   const SkinningStageTimes& lastTimes() const { return times_; }
   ClContext& context() { return *context_; }
   const ClContext& context() const { return *context_; }
+  // #V of the uploaded mesh.
   int vertexCount() const { return vertex_count_; }
 
  private:

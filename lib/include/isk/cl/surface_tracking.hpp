@@ -20,6 +20,7 @@
 
 namespace isk {
 
+// One character's surface tracking on an OpenCL device (see above).
 class ClSurfaceTracking {
  public:
   // `fields` (kept by reference, must outlive this) evaluates the
@@ -36,17 +37,21 @@ class ClSurfaceTracking {
   // the normals stage).
   void begin(const TransformList& skinning, const cl::Buffer& skinned_positions,
              const cl::Buffer& skinned_normals);
-  void project(int steps);
-  void relax();
-  void smooth();
-  void finish();
+  void project(int steps);  // `steps` projection steps (eq. 4)
+  void relax();             // one relaxation step (eq. 5, 6)
+  void smooth();            // beta, its diffusion and the Laplacian steps
+  void finish();            // seam copies and normals
 
   // The whole frame; returns when the device is done, with lastTimes().
+  // Stage calls and reads throw isk::Error(kOpenCl) naming the OpenCL call
+  // when the device fails; begin() and run() throw kInvalidArgument for a
+  // pose of the wrong size.
   void run(const TransformList& skinning, const cl::Buffer& skinned_positions,
            const cl::Buffer& skinned_normals);
 
   // Uploads a working state (tests: both backends from the same input),
-  // after a begin() that set the pose.
+  // after a begin() that set the pose. Throws isk::Error(kInvalidArgument)
+  // unless every size is #V.
   // relax_frames (optional, #V by 4): see CpuSurfaceTracking::relaxFrames.
   void setState(const Matrix3Xf& positions,
                 const std::vector<TrackState>& states,
@@ -70,9 +75,10 @@ class ClSurfaceTracking {
   const cl::Buffer& positionsBuffer() const { return positions_[current_]; }
   const cl::Buffer& normalsBuffer() const { return normals_; }
 
+  // Milliseconds per stage of the last run() (profiling events).
   const TrackingStageTimes& lastTimes() const { return times_; }
   const SurfaceTrackingOptions& options() const { return options_; }
-  int vertexCount() const { return vertex_count_; }
+  int vertexCount() const { return vertex_count_; }  // #V of the mesh
   // Device memory of the tracking's own buffers.
   size_t bytes() const { return bytes_; }
 
