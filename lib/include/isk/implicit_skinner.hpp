@@ -88,17 +88,44 @@ class ImplicitSkinner {
   // Vertices stopped at a contact in the last frame (reads the states).
   int contactCount();
 
+  // The parts below throw isk::Error(kInvalidArgument) on a moved-from
+  // skinner, as run() and the reads do (the reads also before run()).
   const ImplicitStageTimes& lastTimes() const { return times_; }
-  const ImplicitFields& fields() const { return *fields_; }
-  const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
-  ClSkinning& skinning() { return *skinning_; }
-  ClFieldEvaluation& fieldEvaluation() { return *field_evaluation_; }
-  ClSurfaceTracking& tracking() { return *tracking_; }
+  const ImplicitFields& fields() const {
+    checkUsable("fields", false);
+    return *fields_;
+  }
+  const TrackingMesh& trackingMesh() const {
+    checkUsable("trackingMesh", false);
+    return *tracking_mesh_;
+  }
+  ClSkinning& skinning() {
+    checkUsable("skinning", false);
+    return *skinning_;
+  }
+  ClFieldEvaluation& fieldEvaluation() {
+    checkUsable("fieldEvaluation", false);
+    return *field_evaluation_;
+  }
+  ClSurfaceTracking& tracking() {
+    checkUsable("tracking", false);
+    return *tracking_;
+  }
   const ImplicitSkinnerOptions& options() const { return options_; }
-  ClContext& context() { return *context_; }
-  int vertexCount() const { return tracking_mesh_->vertexCount(); }
+  ClContext& context() {
+    checkUsable("context", false);
+    return *context_;
+  }
+  int vertexCount() const {
+    checkUsable("vertexCount", false);
+    return tracking_mesh_->vertexCount();
+  }
 
  private:
+  // Throws isk::Error(kInvalidArgument) naming `what` on a moved-from
+  // skinner, or before the first run() when `needs_run`.
+  void checkUsable(const char* what, bool needs_run) const;
+
   std::shared_ptr<ClContext> context_;
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
@@ -108,6 +135,7 @@ class ImplicitSkinner {
   std::unique_ptr<ClFieldEvaluation> field_evaluation_;
   std::unique_ptr<ClSurfaceTracking> tracking_;
   ImplicitStageTimes times_;
+  bool has_run_ = false;
 };
 
 // The CPU reference of ImplicitSkinner (CpuSkinning + CpuSurfaceTracking).
@@ -119,27 +147,54 @@ class CpuImplicitSkinner {
                      std::shared_ptr<const ImplicitFields> fields,
                      const ImplicitSkinnerOptions& options = {});
 
+  // As ImplicitSkinner's: isk::Error(kInvalidArgument) for a pose of the
+  // wrong size or with non-finite transforms, a moved-from skinner, or a
+  // result asked for before run().
   void run(const TransformList& skinning);
-  const Matrix3Xf& positions() const { return tracking_->positions(); }
-  const Matrix3Xf& normals() const { return tracking_->normals(); }
+  const Matrix3Xf& positions() const {
+    checkUsable("positions", true);
+    return tracking_->positions();
+  }
+  const Matrix3Xf& normals() const {
+    checkUsable("normals", true);
+    return tracking_->normals();
+  }
   void readPositions(Matrix3Xf& out) const { out = positions(); }
   void readNormals(Matrix3Xf& out) const { out = normals(); }
   int contactCount() const;
 
   const ImplicitStageTimes& lastTimes() const { return times_; }
-  const ImplicitFields& fields() const { return *fields_; }
-  const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
-  CpuSkinning& skinning() { return *skinning_; }
-  CpuSurfaceTracking& tracking() { return *tracking_; }
-  int vertexCount() const { return tracking_mesh_->vertexCount(); }
+  const ImplicitFields& fields() const {
+    checkUsable("fields", false);
+    return *fields_;
+  }
+  const TrackingMesh& trackingMesh() const {
+    checkUsable("trackingMesh", false);
+    return *tracking_mesh_;
+  }
+  CpuSkinning& skinning() {
+    checkUsable("skinning", false);
+    return *skinning_;
+  }
+  CpuSurfaceTracking& tracking() {
+    checkUsable("tracking", false);
+    return *tracking_;
+  }
+  int vertexCount() const {
+    checkUsable("vertexCount", false);
+    return tracking_mesh_->vertexCount();
+  }
 
  private:
+  void checkUsable(const char* what, bool needs_run) const;
+
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
   std::unique_ptr<const TrackingMesh> tracking_mesh_;
   std::unique_ptr<CpuSkinning> skinning_;
   std::unique_ptr<CpuSurfaceTracking> tracking_;
   ImplicitStageTimes times_;
+  bool has_run_ = false;
 };
 
 }  // namespace isk
