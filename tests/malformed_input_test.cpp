@@ -808,6 +808,27 @@ TEST(MalformedFiles, MutatedAssetsLoadOrNameTheFile) {
   }
 }
 
+// Several hundred joints through a file: the 300-joint tube written as GLB
+// loads with every joint and weight, and skins to finite output.
+TEST(MalformedFiles, SeveralHundredJointsLoadFromAFile) {
+  Rig tube;
+  for (const OddRig& odd : oddRigs()) {
+    if (odd.name == "300 joints") tube = odd.make();
+  }
+  ASSERT_EQ(tube.skeleton.jointCount(), 300);
+  ScopedTempDir dir;
+  const std::string path =
+      test::writeBytes(dir.file("tube300.glb"), test::rigGlb(tube));
+  const Rig rig = importRig(path);
+  EXPECT_EQ(rig.skeleton.jointCount(), 300);
+  EXPECT_EQ(rig.skeleton.skinJointCount(), 300);
+  ASSERT_EQ(rig.mesh.vertexCount(), tube.mesh.vertexCount());
+  EXPECT_EQ(rig.weights.joints, tube.weights.joints);
+  PipelineOptions options;
+  options.implicit = false;  // MalformedRigs runs it on the same rig
+  runWholePipeline("tube300.glb", rig, options);
+}
+
 // Random bytes under every extension Assimp might pick an importer by, and
 // files that hold only a valid header.
 TEST(MalformedFiles, RandomBytesAndBareHeadersNameTheFile) {
