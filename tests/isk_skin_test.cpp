@@ -473,6 +473,28 @@ TEST(IskSkinTest, ExistingReportIsReplacedOnlyWithOverwrite) {
   EXPECT_FALSE(fs::exists(dir / "frames")) << "a refused run wrote frames";
 }
 
+// A clip that lasts for ages (a corrupt key time) is refused by name rather
+// than run for ever at 30 frames per second; --frames N still runs it.
+TEST(IskSkinTest, AnEndlessClipIsRefusedWithoutFrames) {
+  ScopedTempDir dir;
+  CylinderRigOptions options;
+  options.rings = 12;
+  options.segments = 8;
+  const std::string input = test::writeBytes(
+      dir / "endless.gltf", test::rigGltf(makeCylinderRig(options), 1e9));
+  ASSERT_EQ(importRig(input).clips.size(), 1u);
+  const std::vector<std::string> args = {input, "--device", "reference"};
+  const RunOutput refused = runIskSkin(args);
+  EXPECT_EQ(refused.exit_code, 1) << describe(args, refused);
+  for (const char* named : {"endless.gltf", "clip 'hold'", "--frames"}) {
+    EXPECT_NE(refused.output.find(named), std::string::npos)
+        << named << " not in: " << refused.output;
+  }
+  const std::vector<std::string> bounded = {input, "--frames", "2"};
+  const RunOutput run = runIskSkin(bounded);
+  EXPECT_EQ(run.exit_code, 0) << describe(bounded, run);
+}
+
 // A run that fails mid-way says which frames it wrote (each complete, no
 // temporary left) and writes no report.
 TEST(IskSkinTest, AFailedRunSaysWhichFramesWereWrittenAndWritesNoReport) {

@@ -41,7 +41,10 @@ inline std::string base64Encode(const std::string& bytes) {
 
 // The glTF JSON of `rig` and its binary buffer. With `embed`, the buffer is
 // a data URI inside the JSON; otherwise it is the GLB's BIN chunk.
-inline std::string rigGltfJson(const Rig& rig, bool embed, std::string* bin) {
+// With `clip_end` > 0, a clip "hold" keeps the last joint still from time 0
+// to `clip_end` seconds (two rotation keys).
+inline std::string rigGltfJson(const Rig& rig, bool embed, std::string* bin,
+                               double clip_end = 0) {
   std::string data;
   std::vector<std::string> views, accessors;
   auto add = [&](const void* bytes, size_t size, int component,
@@ -107,6 +110,23 @@ inline std::string rigGltfJson(const Rig& rig, bool embed, std::string* bin) {
   const size_t bind = add(binds.data(), binds.size() * 4, 5126, "MAT4",
                           rig.skeleton.jointCount());
 
+  std::string animations;
+  if (clip_end > 0) {
+    const std::vector<float> times = {0.f, static_cast<float>(clip_end)};
+    const std::vector<float> keys = {0, 0, 0, 1, 0, 0, 0, 1};
+    const size_t input =
+        add(times.data(), 8, 5126, "SCALAR", 2,
+            ",\"min\":[0],\"max\":[" + std::to_string(times[1]) + "]");
+    const size_t output = add(keys.data(), 32, 5126, "VEC4", 2);
+    animations =
+        ",\"animations\":[{\"name\":\"hold\",\"samplers\":[{"
+        "\"input\":" +
+        std::to_string(input) + ",\"output\":" + std::to_string(output) +
+        "}],\"channels\":[{\"sampler\":0,\"target\":{\"node\":" +
+        std::to_string(rig.skeleton.jointCount() - 1) +
+        ",\"path\":\"rotation\"}}]}]";
+  }
+
   const Skeleton& skeleton = rig.skeleton;
   std::string nodes, roots, joint_list;
   for (int j = 0; j < skeleton.jointCount(); ++j) {
@@ -156,12 +176,13 @@ inline std::string rigGltfJson(const Rig& rig, bool embed, std::string* bin) {
          ",\"WEIGHTS_0\":" + std::to_string(weight) +
          "},\"indices\":" + std::to_string(index) +
          "}]}],\"skins\":[{\"joints\":[" + joint_list +
-         "],\"inverseBindMatrices\":" + std::to_string(bind) + "}]}";
+         "],\"inverseBindMatrices\":" + std::to_string(bind) + "}]" +
+         animations + "}";
 }
 
 // `rig` as glTF text with its buffer embedded.
-inline std::string rigGltf(const Rig& rig) {
-  return rigGltfJson(rig, true, nullptr);
+inline std::string rigGltf(const Rig& rig, double clip_end = 0) {
+  return rigGltfJson(rig, true, nullptr, clip_end);
 }
 
 // `rig` as a binary GLB file (JSON chunk, BIN chunk).

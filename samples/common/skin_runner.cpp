@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <regex>
 #include <sstream>
 
@@ -165,7 +166,11 @@ AnimationClip selectClip(const Rig& rig, const std::string& spec,
 
 int defaultFrameCount(const AnimationClip& clip) {
   if (!std::isfinite(clip.duration) || clip.duration <= 0) return 1;
-  return static_cast<int>(std::floor(clip.duration * 30.0)) + 1;
+  // A corrupt key time can make a clip last for ages: no int overflow.
+  const double frames = std::floor(clip.duration * 30.0) + 1;
+  return frames >= std::numeric_limits<int>::max()
+             ? std::numeric_limits<int>::max()
+             : static_cast<int>(frames);
 }
 
 std::vector<double> frameTimes(const AnimationClip& clip, int frames) {
@@ -437,7 +442,8 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       const Error* error = dynamic_cast<const Error*>(&e);
       throw Error(error ? error->code() : ErrorCode::kInternal,
                   describeFailedFrame(i, result.frames, e.what(), options,
-                                      result.files));
+                                      result.files),
+                  error ? error->clStatus() : 0);
     }
     if (options.progress) {
       std::cerr << "\r[frame " << (i + 1) << "/" << result.frames << "]"

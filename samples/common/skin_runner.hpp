@@ -33,7 +33,8 @@ Rig loadRig(const std::string& input);
 AnimationClip selectClip(const Rig& rig, const std::string& spec,
                          std::string* note);
 
-// 30 frames per second of the clip plus the first key, at least 1.
+// 30 frames per second of the clip plus the first key, at least 1 and at
+// most INT_MAX (a corrupt key time can make a clip last for ages).
 int defaultFrameCount(const AnimationClip& clip);
 
 // `frames` times spread uniformly from the clip's start to its end (the

@@ -62,6 +62,9 @@ struct Options {
 };
 
 constexpr double kMiB = 1024.0 * 1024.0;
+// The most frames the default (30 per second of the clip) may ask for: an
+// hour of animation.
+constexpr int kMaxDefaultFrames = 108001;
 
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(
@@ -428,6 +431,15 @@ int run(const Options& options) {
   if (!clip_note.empty()) std::cerr << "isk-skin: " << clip_note << "\n";
   const int frames = options.frames > 0 ? options.frames
                                         : isk::samples::defaultFrameCount(clip);
+  // A clip of absurd length (a corrupt key time) would run for ever at 30
+  // frames per second: say so rather than hang.
+  if (options.frames == 0 && frames > kMaxDefaultFrames) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     options.input + ": clip '" + clip.name + "' lasts " +
+                         std::to_string(clip.duration) + " s, " +
+                         std::to_string(frames) +
+                         " frames at 30 per second; pass --frames N");
+  }
 
   // The input is never a target: neither the report nor a frame file.
   const bool input_is_file = options.input.rfind("builtin:", 0) != 0;
