@@ -829,6 +829,52 @@ TEST(MalformedFiles, SeveralHundredJointsLoadFromAFile) {
   runWholePipeline("tube300.glb", rig, options);
 }
 
+// NaN and infinite positions and weights in a file name the mesh and vertex
+// (glTF and GLB of a procedural rig, one value spoiled at a time).
+TEST(MalformedFiles, NonFiniteValuesInAFileNameTheVertex) {
+  ScopedTempDir dir;
+  const Rig good = smallCylinder();
+  struct Case {
+    std::string name;
+    std::function<void(Rig&)> spoil;
+    std::vector<std::string> named;
+  };
+  const std::vector<Case> cases = {
+      {"nan_position",
+       [](Rig& r) { r.mesh.positions(11, 1) = kNaN; },
+       {"mesh 'cylinder' vertex 11", "non-finite position"}},
+      {"inf_position",
+       [](Rig& r) { r.mesh.positions(12, 2) = kInf; },
+       {"mesh 'cylinder' vertex 12", "non-finite position"}},
+      {"nan_weight",
+       [](Rig& r) { r.weights.weights[r.weights.offsets[7]] = kNaN; },
+       {"vertex 7"}},
+      {"inf_weight",
+       [](Rig& r) { r.weights.weights[r.weights.offsets[8]] = kInf; },
+       {"vertex 8"}},
+  };
+  for (const Case& c : cases) {
+    Rig rig = good;
+    c.spoil(rig);
+    for (const bool binary : {false, true}) {
+      const std::string path =
+          test::writeBytes(dir.file(c.name + (binary ? ".glb" : ".gltf")),
+                           binary ? test::rigGlb(rig) : test::rigGltf(rig));
+      try {
+        const Rig loaded = importRig(path);
+        ADD_FAILURE() << path << " loaded";
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ErrorCode::kMalformedAsset) << e.what();
+        EXPECT_EQ(std::string(e.what()).rfind(path, 0), 0u) << e.what();
+        for (const std::string& s : c.named) {
+          EXPECT_NE(std::string(e.what()).find(s), std::string::npos)
+              << path << ": '" << s << "' not in: " << e.what();
+        }
+      }
+    }
+  }
+}
+
 // Random bytes under every extension Assimp might pick an importer by, and
 // files that hold only a valid header.
 TEST(MalformedFiles, RandomBytesAndBareHeadersNameTheFile) {

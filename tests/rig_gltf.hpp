@@ -4,6 +4,8 @@
 // most 4 influences per vertex: the largest) and no clip.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -92,9 +94,13 @@ inline std::string rigGltfJson(const Rig& rig, bool embed, std::string* bin,
     return "[" + std::to_string(a[0]) + "," + std::to_string(a[1]) + "," +
            std::to_string(a[2]) + "]";
   };
+  // min and max are written when finite (JSON has no inf or NaN).
+  const bool finite_bounds =
+      std::isfinite(lo[0] + lo[1] + lo[2] + hi[0] + hi[1] + hi[2]);
   const size_t position =
       add(positions.data(), positions.size() * 4, 5126, "VEC3", n,
-          ",\"min\":" + bounds(lo) + ",\"max\":" + bounds(hi));
+          finite_bounds ? ",\"min\":" + bounds(lo) + ",\"max\":" + bounds(hi)
+                        : std::string());
   const size_t normal =
       add(normals.data(), normals.size() * 4, 5126, "VEC3", n);
   const size_t joint = add(joints.data(), joints.size() * 2, 5123, "VEC4", n);
