@@ -19,6 +19,7 @@
 #include "isk/import.hpp"
 #include "isk/procedural.hpp"
 #include "isk/rig.hpp"
+#include "rig_gltf.hpp"
 #include "test_support.hpp"
 
 namespace isk {
@@ -368,10 +369,168 @@ TEST(IskSkinTest, RefusesAFolderWithFramesUnlessOverwrite) {
   EXPECT_EQ(frameFiles(out), expectedFrameNames(2, "obj"));
   EXPECT_TRUE(fs::exists(dir / "frames/notes.txt"));
 
-  // A folder without frame files is fine.
-  const std::vector<std::string> fresh = {"builtin:cylinder", "--frames", "1",
-                                          "--out", dir.path().string()};
+  // A folder that holds anything else is refused too (see
+  // RefusesANonEmptyFolderUnlessOverwrite), and accepted with --overwrite.
+  std::vector<std::string> fresh = {"builtin:cylinder", "--frames", "1",
+                                    "--out", dir.path().string()};
+  EXPECT_EQ(runIskSkin(fresh).exit_code, 1);
+  fresh.push_back("--overwrite");
   EXPECT_EQ(runIskSkin(fresh).exit_code, 0);
+}
+
+// Nothing lost: a folder holding anything is refused without --overwrite;
+// with it, only frame files are replaced.
+TEST(IskSkinTest, RefusesANonEmptyFolderUnlessOverwrite) {
+  ScopedTempDir dir;
+  const std::string out = dir / "out";
+  fs::create_directories(out);
+  std::ofstream(dir / "out/notes.txt") << "keep me\n";
+  std::vector<std::string> args = {"builtin:cylinder", "--frames", "2", "--out",
+                                   out};
+  const RunOutput refused = runIskSkin(args);
+  EXPECT_EQ(refused.exit_code, 1) << describe(args, refused);
+  for (const char* named : {"not empty", "notes.txt", "--overwrite"}) {
+    EXPECT_NE(refused.output.find(named), std::string::npos)
+        << named << " not in: " << refused.output;
+  }
+  EXPECT_TRUE(frameFiles(out).empty());
+  args.push_back("--overwrite");
+  const RunOutput written = runIskSkin(args);
+  ASSERT_EQ(written.exit_code, 0) << describe(args, written);
+  EXPECT_EQ(frameFiles(out), expectedFrameNames(2, "obj"));
+  EXPECT_EQ(readFile(dir / "out/notes.txt"), "keep me\n");
+}
+
+// The input is never written, even when --out is the input's own folder or
+// the input has a frame file's name there (procedural rig written as glTF:
+// no data folder needed).
+TEST(IskSkinTest, OutIntoTheInputsFolderNeverTouchesTheInput) {
+  ScopedTempDir dir;
+  CylinderRigOptions options;
+  options.rings = 12;
+  options.segments = 8;
+  const std::string gltf = test::rigGltf(makeCylinderRig(options));
+  const std::string folder = dir / "in";
+  fs::create_directories(folder);
+  const std::string input = test::writeBytes(dir / "in/rig.gltf", gltf);
+  const auto input_time = fs::last_write_time(input);
+
+  std::vector<std::string> args = {input, "--frames", "3", "--out", folder};
+  const RunOutput refused = runIskSkin(args);
+  EXPECT_EQ(refused.exit_code, 1) << describe(args, refused);
+  EXPECT_NE(refused.output.find("rig.gltf"), std::string::npos)
+      << refused.output;
+  args.push_back("--overwrite");
+  const RunOutput written = runIskSkin(args);
+  ASSERT_EQ(written.exit_code, 0) << describe(args, written);
+  EXPECT_EQ(frameFiles(folder), expectedFrameNames(3, "obj"));
+  // Again, replacing the earlier frames.
+  const RunOutput again = runIskSkin(args);
+  ASSERT_EQ(again.exit_code, 0) << describe(args, again);
+  EXPECT_EQ(readFile(input), gltf);
+  EXPECT_EQ(fs::last_write_time(input), input_time);
+
+  // An input named like a frame file in the out folder: never replaced nor
+  // removed, whatever the outcome.
+  const std::string framed = test::writeBytes(dir / "in/frame_0001.obj", gltf);
+  for (const std::string& format : {"obj", "ply"}) {
+    const std::vector<std::string> onto = {framed,  "--frames",   "3",
+                                           "--out", folder,       "--format",
+                                           format,  "--overwrite"};
+    const RunOutput run = runIskSkin(onto);
+    EXPECT_NE(run.exit_code, 0) << describe(onto, run);
+    EXPECT_EQ(readFile(framed), gltf) << format;
+  }
+  EXPECT_EQ(readFile(input), gltf);
+}
+
+// The report is never replaced without --overwrite, never lands on a frame
+// file, and is only written by a finished run.
+TEST(IskSkinTest, ExistingReportIsReplacedOnlyWithOverwrite) {
+  ScopedTempDir dir;
+  const std::string report = test::writeBytes(dir / "report.json", "keep\n");
+  std::vector<std::string> args = {"builtin:cylinder", "--frames", "2",
+                                   "--report", report};
+  const RunOutput refused = runIskSkin(args);
+  EXPECT_EQ(refused.exit_code, 1) << describe(args, refused);
+  EXPECT_NE(refused.output.find("--overwrite"), std::string::npos)
+      << refused.output;
+  EXPECT_EQ(readFile(report), "keep\n");
+  args.push_back("--overwrite");
+  const RunOutput replaced = runIskSkin(args);
+  ASSERT_EQ(replaced.exit_code, 0) << describe(args, replaced);
+  EXPECT_EQ(readReport(report)["frames"], 2);
+
+  const std::vector<std::string> onto_frame = {"builtin:cylinder",
+                                               "--frames",
+                                               "2",
+                                               "--out",
+                                               dir / "frames",
+                                               "--report",
+                                               dir / "frames/frame_0001.obj"};
+  const RunOutput clash = runIskSkin(onto_frame);
+  EXPECT_NE(clash.exit_code, 0) << describe(onto_frame, clash);
+  EXPECT_FALSE(fs::exists(dir / "frames")) << "a refused run wrote frames";
+}
+
+// A clip that lasts for ages (a corrupt key time) is refused by name rather
+// than run for ever at 30 frames per second; --frames N still runs it.
+TEST(IskSkinTest, AnEndlessClipIsRefusedWithoutFrames) {
+  ScopedTempDir dir;
+  CylinderRigOptions options;
+  options.rings = 12;
+  options.segments = 8;
+  const std::string input = test::writeBytes(
+      dir / "endless.gltf", test::rigGltf(makeCylinderRig(options), 1e9));
+  ASSERT_EQ(importRig(input).clips.size(), 1u);
+  const std::vector<std::string> args = {input, "--device", "reference"};
+  const RunOutput refused = runIskSkin(args);
+  EXPECT_EQ(refused.exit_code, 1) << describe(args, refused);
+  for (const char* named : {"endless.gltf", "clip 'hold'", "--frames"}) {
+    EXPECT_NE(refused.output.find(named), std::string::npos)
+        << named << " not in: " << refused.output;
+  }
+  const std::vector<std::string> bounded = {input, "--frames", "2"};
+  const RunOutput run = runIskSkin(bounded);
+  EXPECT_EQ(run.exit_code, 0) << describe(bounded, run);
+}
+
+// A run that fails mid-way says which frames it wrote (each complete, no
+// temporary left) and writes no report.
+TEST(IskSkinTest, AFailedRunSaysWhichFramesWereWrittenAndWritesNoReport) {
+  ScopedTempDir dir;
+  const std::string out = dir / "frames";
+  const std::string report = dir / "report.json";
+  const std::vector<std::string> args = {
+      "builtin:cylinder", "--frames", "6", "--out", out, "--report", report};
+  const RunOutput failed = runIskSkin(args, "ISK_SKIN_FAIL_AT_FRAME=3 ");
+  EXPECT_EQ(failed.exit_code, 1) << describe(args, failed);
+  for (const char* named :
+       {"frame 3 of 6 failed", "injected failure", "incomplete",
+        "frames 0 to 2 were written", "frame_0000.obj to frame_0002.obj",
+        "no report written"}) {
+    EXPECT_NE(failed.output.find(named), std::string::npos)
+        << "'" << named << "' not in: " << failed.output;
+  }
+  EXPECT_FALSE(fs::exists(report));
+  // Exactly the frames said, complete, and no temporary file.
+  const Rig rig = makeBuiltinRig("cylinder");
+  ASSERT_TRUE(fs::is_directory(out)) << failed.output;
+  expectObjFrames(out, 3, rig.mesh.vertexCount());
+  for (const auto& entry : fs::directory_iterator(out)) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos)
+        << entry.path();
+  }
+
+  ScopedTempDir dir0;
+  const std::vector<std::string> first = {"builtin:cylinder", "--frames", "2",
+                                          "--out", dir0 / "frames"};
+  const RunOutput none = runIskSkin(first, "ISK_SKIN_FAIL_AT_FRAME=0 ");
+  EXPECT_EQ(none.exit_code, 1) << describe(first, none);
+  EXPECT_NE(none.output.find("no frame file was written"), std::string::npos)
+      << none.output;
+  ASSERT_TRUE(fs::is_directory(dir0 / "frames")) << none.output;
+  EXPECT_TRUE(frameFiles(dir0 / "frames").empty());
 }
 
 TEST(IskSkinTest, ImplicitMethodRunsOnEveryAsset) {

@@ -20,8 +20,34 @@ CpuSkinning::CpuSkinning(const Mesh& mesh, const SkinWeights& weights,
   adjacency_ = VertexTriangleAdjacency::build(triangles_, mesh.vertexCount());
 }
 
+// A built object has at least one vertex (the mesh was validated); a
+// moved-from one has none.
+void CpuSkinning::checkUsable(const char* what, bool needs_run) const {
+  if (rest_positions_.rows() == 0) {
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("CpuSkinning::") + what +
+                    ": the object was moved from (it holds no mesh)");
+  }
+  if (needs_run && !has_run_) {
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("CpuSkinning::") + what +
+                    " before run(): there is no result yet");
+  }
+}
+
+void CpuSkinning::readPositions(Matrix3Xf& out) const {
+  checkUsable("readPositions", true);
+  out = positions_;
+}
+
+void CpuSkinning::readNormals(Matrix3Xf& out) const {
+  checkUsable("readNormals", true);
+  out = normals_;
+}
+
 void CpuSkinning::run(SkinningMethod method, const TransformList& skinning,
                       bool recompute_normals) {
+  checkUsable("run", false);
   if (static_cast<int>(skinning.size()) != joint_count_) {
     throw Error(ErrorCode::kInvalidArgument,
                 "CpuSkinning::run: " + std::to_string(skinning.size()) +
@@ -39,6 +65,7 @@ void CpuSkinning::run(SkinningMethod method, const TransformList& skinning,
   job.out_normals = recompute_normals ? &skinned_normals_ : &normals_;
   auto start = std::chrono::steady_clock::now();
   job.run();
+  has_run_ = true;
   times_.skinning_ms = detail::millisecondsSince(start);
   if (!recompute_normals) return;
   VertexNormalsJob normals;

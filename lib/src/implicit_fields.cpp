@@ -66,6 +66,8 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   if (!(options.sampling.culling_h >= 0 && options.sampling.culling_h < 0.5))
     throw Error(ErrorCode::kInvalidArgument,
                 "buildImplicitFields: culling_h must be in [0, 0.5)");
+  // The rig first, named by its source (partitionMesh validates it again).
+  rig.validate().throwIfFailed("buildImplicitFields: " + rig.source);
   validateCompositionOptions(rig.skeleton, options.composition)
       .throwIfFailed("buildImplicitFields");
   auto report = [&](const char* stage, float fraction) {

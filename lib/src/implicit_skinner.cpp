@@ -73,7 +73,19 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
       *field_evaluation_, *tracking_mesh_, options.tracking);
 }
 
+void ImplicitSkinner::checkUsable(const char* what, bool needs_run) const {
+  if (!tracking_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ImplicitSkinner::") + what +
+                    ": the skinner was moved from (it holds no rig)");
+  if (needs_run && !has_run_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ImplicitSkinner::") + what +
+                    " before run(): there is no frame yet");
+}
+
 void ImplicitSkinner::run(const TransformList& skinning) {
+  checkUsable("run", false);
   times_ = {};
   // Tracking is enqueued behind the skinning without a wait between them.
   skinning_->enqueue(options_.base_skinning, skinning,
@@ -85,9 +97,11 @@ void ImplicitSkinner::run(const TransformList& skinning) {
       skinning_->lastTimes().upload_ms + field_evaluation_->lastUploadMs();
   times_.skinning_ms = skinning_->lastTimes().skinning_ms;
   times_.tracking = tracking_->lastTimes();
+  has_run_ = true;
 }
 
 void ImplicitSkinner::readPositions(Matrix3Xf& out) {
+  checkUsable("readPositions", true);
   const auto start = std::chrono::steady_clock::now();
   tracking_->readPositions(out);
   times_.readback_ms += std::chrono::duration<double, std::milli>(
@@ -96,6 +110,7 @@ void ImplicitSkinner::readPositions(Matrix3Xf& out) {
 }
 
 void ImplicitSkinner::readNormals(Matrix3Xf& out) {
+  checkUsable("readNormals", true);
   const auto start = std::chrono::steady_clock::now();
   tracking_->readNormals(out);
   times_.readback_ms += std::chrono::duration<double, std::milli>(
@@ -104,12 +119,17 @@ void ImplicitSkinner::readNormals(Matrix3Xf& out) {
 }
 
 const cl::Buffer& ImplicitSkinner::positionsBuffer() const {
+  checkUsable("positionsBuffer", false);
   return tracking_->positionsBuffer();
 }
 const cl::Buffer& ImplicitSkinner::normalsBuffer() const {
+  checkUsable("normalsBuffer", false);
   return tracking_->normalsBuffer();
 }
-int ImplicitSkinner::contactCount() { return tracking_->contactCount(); }
+int ImplicitSkinner::contactCount() {
+  checkUsable("contactCount", true);
+  return tracking_->contactCount();
+}
 
 CpuImplicitSkinner::CpuImplicitSkinner(const Rig& rig,
                                        const ImplicitSkinnerOptions& options)
@@ -129,16 +149,30 @@ CpuImplicitSkinner::CpuImplicitSkinner(
       fields_->grids, &fields_->composition, *tracking_mesh_, options.tracking);
 }
 
+void CpuImplicitSkinner::checkUsable(const char* what, bool needs_run) const {
+  if (!tracking_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("CpuImplicitSkinner::") + what +
+                    ": the skinner was moved from (it holds no rig)");
+  if (needs_run && !has_run_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("CpuImplicitSkinner::") + what +
+                    " before run(): there is no frame yet");
+}
+
 void CpuImplicitSkinner::run(const TransformList& skinning) {
+  checkUsable("run", false);
   times_ = {};
   skinning_->run(options_.base_skinning, skinning,
                  /*recompute_normals=*/false);
   tracking_->run(skinning, skinning_->positions(), skinning_->normals());
   times_.skinning_ms = skinning_->lastTimes().skinning_ms;
   times_.tracking = tracking_->lastTimes();
+  has_run_ = true;
 }
 
 int CpuImplicitSkinner::contactCount() const {
+  checkUsable("contactCount", true);
   return countStates(tracking_->states()).contact;
 }
 

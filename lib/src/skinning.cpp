@@ -117,7 +117,7 @@ Validation SkinningJob::validate() const {
   }
   // Only what run() relies on: a full weights check per frame would cost as
   // much as skinning; Rig::validate() does it once.
-  if (weights->vertexCount() != n ||
+  if (weights->offsets.empty() || weights->vertexCount() != n ||
       weights->offsets.back() != weights->joints.size() ||
       weights->weights.size() != weights->joints.size()) {
     return Validation::fail("skin weights have " +

@@ -432,6 +432,14 @@ CpuSurfaceTracking::CpuSurfaceTracking(const FieldGridSet& fields,
                 "by TrackingMesh::build?)");
 }
 
+void CpuSurfaceTracking::checkBegun(const char* stage) const {
+  if (!begun_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("CpuSurfaceTracking::") + stage +
+                    " before begin(): no frame has been started (no pose, "
+                    "no positions)");
+}
+
 void CpuSurfaceTracking::begin(const TransformList& skinning,
                                const Matrix3Xf& skinned_positions,
                                const Matrix3Xf& skinned_normals) {
@@ -465,12 +473,14 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
                      : TrackState::kUntracked;
   beta_.assign(2 * static_cast<size_t>(n), 0.f);
   times_ = {};
+  begun_ = true;
 }
 
 void CpuSurfaceTracking::setState(const Matrix3Xf& positions,
                                   const std::vector<TrackState>& states,
                                   const Matrix4Xf& prev_gradients,
                                   const Matrix4Xf* relax_frames) {
+  checkBegun("setState");
   const int n = mesh_->vertexCount();
   if (positions.rows() != n || static_cast<int>(states.size()) != n ||
       prev_gradients.rows() != n || (relax_frames && relax_frames->rows() != n))
@@ -512,6 +522,7 @@ Eigen::Vector4f CpuSurfaceTracking::sampleAt(
 }
 
 void CpuSurfaceTracking::project(int steps) {
+  checkBegun("project");
   const auto start = std::chrono::steady_clock::now();
   const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
   const float cos_contact = std::cos(options_.contact_angle_degrees *
@@ -598,6 +609,7 @@ void CpuSurfaceTracking::project(int steps) {
 }
 
 void CpuSurfaceTracking::relax() {
+  checkBegun("relax");
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   scratch_ = positions_;
@@ -629,6 +641,7 @@ void CpuSurfaceTracking::relax() {
 }
 
 void CpuSurfaceTracking::smooth() {
+  checkBegun("smooth");
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   const OneRings& rings = mesh_->rings;
@@ -708,6 +721,7 @@ void CpuSurfaceTracking::smooth() {
 }
 
 void CpuSurfaceTracking::finish() {
+  checkBegun("finish");
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   for (int v = 0; v < n; ++v) {

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <regex>
 #include <sstream>
 
@@ -62,6 +63,43 @@ bool samePath(const fs::path& a, const fs::path& b) {
   std::error_code ec;
   const bool same = fs::equivalent(a, b, ec);
   return !ec && same;
+}
+
+// Throws isk::Error(kInternal) naming the first vertex whose skinned
+// position or normal is not finite: such a frame is never written.
+void checkFiniteFrame(const Mesh& mesh, const Matrix3Xf& positions,
+                      const Matrix3Xf& normals) {
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    const char* what =
+        !positions.row(v).allFinite() ? "position"
+        : (normals.rows() == positions.rows() && !normals.row(v).allFinite())
+            ? "normal"
+            : nullptr;
+    if (what) {
+      throw Error(ErrorCode::kInternal,
+                  mesh.describeVertex(static_cast<int>(v)) +
+                      " has a non-finite skinned " + what);
+    }
+  }
+}
+
+// The message of a failed frame: what failed, and what is on disk.
+std::string describeFailedFrame(int frame, int frames, const std::string& why,
+                                const RunOptions& options,
+                                const std::vector<std::string>& written) {
+  std::ostringstream out;
+  out << "frame " << frame << " of " << frames << " failed: " << why;
+  if (options.out_dir.empty()) return out.str();
+  if (written.empty()) {
+    out << "; no frame file was written to " << options.out_dir;
+  } else {
+    out << "; the run is incomplete: frames 0 to " << written.size() - 1
+        << " were written to " << options.out_dir << " ("
+        << fs::path(written.front()).filename().string() << " to "
+        << fs::path(written.back()).filename().string() << ", "
+        << written.size() << " of " << frames << " files)";
+  }
+  return out.str();
 }
 
 }  // namespace
@@ -128,7 +166,11 @@ AnimationClip selectClip(const Rig& rig, const std::string& spec,
 
 int defaultFrameCount(const AnimationClip& clip) {
   if (!std::isfinite(clip.duration) || clip.duration <= 0) return 1;
-  return static_cast<int>(std::floor(clip.duration * 30.0)) + 1;
+  // A corrupt key time can make a clip last for ages: no int overflow.
+  const double frames = std::floor(clip.duration * 30.0) + 1;
+  return frames >= std::numeric_limits<int>::max()
+             ? std::numeric_limits<int>::max()
+             : static_cast<int>(frames);
 }
 
 std::vector<double> frameTimes(const AnimationClip& clip, int frames) {
@@ -168,31 +210,41 @@ void prepareOutputFolder(const std::string& dir, bool overwrite,
   }
 
   std::vector<fs::path> frame_files;
-  bool has_frame_entries = false;
+  std::vector<std::string> entries;  // every name, for the refusal
   for (const auto& entry : fs::directory_iterator(folder, ec)) {
     const std::string name = entry.path().filename().string();
-    if (name.compare(0, 6, "frame_") != 0) continue;
-    has_frame_entries = true;
-    if (isFrameFileName(name)) {
-      if (!protected_path.empty() && samePath(entry.path(), protected_path)) {
-        throw Error(ErrorCode::kIo,
-                    dir + ": the input " + protected_path +
-                        " is a frame file of this folder; choose another "
-                        "--out folder");
-      }
-      frame_files.push_back(entry.path());
+    entries.push_back(name);
+    if (!isFrameFileName(name)) continue;
+    // The input is never removed nor replaced, --overwrite or not.
+    if (!protected_path.empty() && samePath(entry.path(), protected_path)) {
+      throw Error(ErrorCode::kIo,
+                  dir + ": the input " + protected_path +
+                      " has a frame file's name in this folder; choose "
+                      "another --out folder");
     }
+    frame_files.push_back(entry.path());
   }
   if (ec) {
     throw Error(ErrorCode::kIo,
                 dir + ": cannot list the folder: " + ec.message());
   }
-  if (has_frame_entries && !overwrite) {
+  // Anything already there (an earlier run's frames, the input, the user's
+  // files) could be mistaken for this run's output or lost: refused unless
+  // asked for.
+  if (!entries.empty() && !overwrite) {
+    std::sort(entries.begin(), entries.end());
+    std::string listed;
+    for (size_t i = 0; i < entries.size() && i < 3; ++i) {
+      listed += (i ? ", '" : "'") + entries[i] + "'";
+    }
+    if (entries.size() > 3) listed += ", ...";
     throw Error(ErrorCode::kIo,
-                dir +
-                    ": already holds frame files from an earlier run; "
-                    "pass --overwrite to replace them or choose another "
-                    "--out folder");
+                dir + ": the folder is not empty (" +
+                    std::to_string(entries.size()) +
+                    (entries.size() == 1 ? " entry: " : " entries: ") + listed +
+                    "); pass --overwrite to write into it (only its "
+                    "frame_NNNN files are replaced) or choose another --out "
+                    "folder");
   }
   for (const fs::path& file : frame_files) {
     fs::remove(file, ec);
@@ -347,7 +399,7 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       if (active) std::cerr << "\n";
     }
   } progress_line{options.progress};
-  for (int i = 0; i < result.frames; ++i) {
+  auto runFrame = [&](int i) {
     const TransformList locals = clip.sampleLocal(skeleton, options.times[i]);
     const TransformList skinning =
         skinningTransforms(skeleton, globalTransforms(skeleton, locals));
@@ -355,6 +407,7 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
     const auto start = Clock::now();
     skinFrame(skinning);
     result.frame_ms.push_back(millisecondsSince(start));
+    checkFiniteFrame(mesh, positions, normals);
     const StageTimes& stages = skinner.lastStages();
     stage_ms.resize(stages.size());
     for (size_t s = 0; s < stages.size(); ++s)
@@ -380,6 +433,17 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
               .string();
       writeMesh(path, options.format, positions, &normals, mesh.triangles);
       result.files.push_back(path);
+    }
+  };
+  for (int i = 0; i < result.frames; ++i) {
+    try {
+      runFrame(i);
+    } catch (const std::exception& e) {
+      const Error* error = dynamic_cast<const Error*>(&e);
+      throw Error(error ? error->code() : ErrorCode::kInternal,
+                  describeFailedFrame(i, result.frames, e.what(), options,
+                                      result.files),
+                  error ? error->clStatus() : 0);
     }
     if (options.progress) {
       std::cerr << "\r[frame " << (i + 1) << "/" << result.frames << "]"

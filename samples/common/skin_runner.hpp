@@ -33,7 +33,8 @@ Rig loadRig(const std::string& input);
 AnimationClip selectClip(const Rig& rig, const std::string& spec,
                          std::string* note);
 
-// 30 frames per second of the clip plus the first key, at least 1.
+// 30 frames per second of the clip plus the first key, at least 1 and at
+// most INT_MAX (a corrupt key time can make a clip last for ages).
 int defaultFrameCount(const AnimationClip& clip);
 
 // `frames` times spread uniformly from the clip's start to its end (the
@@ -44,10 +45,11 @@ std::vector<double> frameTimes(const AnimationClip& clip, int frames);
 std::string frameFileName(int frame, MeshFormat format);
 
 // Makes `dir` ready for frame files: creates it when missing; when it
-// already holds frame files, refuses (isk::Error kIo) unless `overwrite`, in
-// which case those old frame files are removed so no stale frame survives.
-// Never removes `protected_path` (the input) and refuses a folder where a
-// frame file would replace it.
+// exists and holds anything, refuses (isk::Error kIo, listing a few entries)
+// unless `overwrite`, in which case the old frame files
+// (frame_NNNN.obj|ply) are removed so no stale frame survives, and every
+// other file stays. Never removes `protected_path` (the input) and refuses a
+// folder where it has a frame file's name.
 void prepareOutputFolder(const std::string& dir, bool overwrite,
                          const std::string& protected_path);
 
@@ -159,6 +161,11 @@ struct RunResult {
 
 // Skins `rig` at every time of `options.times` with `clip`, after one
 // bind-pose run that measures rest_pose_error (and warms the device up).
+// A frame whose output holds a non-finite position or normal is an error
+// (isk::Error kInternal naming the vertex), never written. When a frame
+// fails, the isk::Error thrown keeps the failure's code and says which
+// frame failed and which frame files were written before it (each is
+// complete: written to a temporary name, then renamed).
 RunResult runFrames(const Rig& rig, const AnimationClip& clip,
                     FrameSkinner& skinner, const RunOptions& options);
 

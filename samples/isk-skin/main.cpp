@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -61,6 +62,9 @@ struct Options {
 };
 
 constexpr double kMiB = 1024.0 * 1024.0;
+// The most frames the default (30 per second of the clip) may ask for: an
+// hour of animation.
+constexpr int kMaxDefaultFrames = 108001;
 
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(
@@ -72,6 +76,39 @@ bool samePath(const fs::path& a, const fs::path& b) {
   std::error_code ec;
   const bool same = fs::equivalent(a, b, ec);
   return !ec && same;
+}
+
+// Refuses a --report target that would destroy something: an existing file
+// (unless --overwrite), a folder, or a frame file's name in --out. Checked
+// before any work, so that a refused run writes nothing.
+void checkReportTarget(const Options& options) {
+  const fs::path report(options.report);
+  std::error_code ec;
+  if (fs::is_directory(report, ec)) {
+    throw isk::Error(isk::ErrorCode::kIo,
+                     "--report " + options.report + ": is a folder");
+  }
+  if (fs::exists(report, ec) && !options.overwrite) {
+    throw isk::Error(isk::ErrorCode::kIo,
+                     "--report " + options.report +
+                         ": the file exists; pass --overwrite to replace it "
+                         "or choose another name");
+  }
+  if (!options.out_dir.empty()) {
+    const fs::path parent =
+        report.has_parent_path() ? report.parent_path() : fs::path(".");
+    const std::string name = report.filename().string();
+    const bool frame_name =
+        name.rfind("frame_", 0) == 0 &&
+        (name.size() > 4 && (name.compare(name.size() - 4, 4, ".obj") == 0 ||
+                             name.compare(name.size() - 4, 4, ".ply") == 0));
+    if (frame_name && fs::weakly_canonical(parent, ec) ==
+                          fs::weakly_canonical(fs::path(options.out_dir), ec)) {
+      throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                       "--report " + options.report +
+                           ": a frame file of --out would replace it");
+    }
+  }
 }
 
 // The operator choices of the command line. Joint names may hold '=', ' ' or
@@ -394,6 +431,15 @@ int run(const Options& options) {
   if (!clip_note.empty()) std::cerr << "isk-skin: " << clip_note << "\n";
   const int frames = options.frames > 0 ? options.frames
                                         : isk::samples::defaultFrameCount(clip);
+  // A clip of absurd length (a corrupt key time) would run for ever at 30
+  // frames per second: say so rather than hang.
+  if (options.frames == 0 && frames > kMaxDefaultFrames) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     options.input + ": clip '" + clip.name + "' lasts " +
+                         std::to_string(clip.duration) + " s, " +
+                         std::to_string(frames) +
+                         " frames at 30 per second; pass --frames N");
+  }
 
   // The input is never a target: neither the report nor a frame file.
   const bool input_is_file = options.input.rfind("builtin:", 0) != 0;
@@ -402,6 +448,7 @@ int run(const Options& options) {
     throw isk::Error(isk::ErrorCode::kInvalidArgument,
                      "--report " + options.report + " is the input file");
   }
+  if (!options.report.empty()) checkReportTarget(options);
   if (!options.out_dir.empty()) {
     isk::samples::prepareOutputFolder(options.out_dir, options.overwrite,
                                       input_is_file ? options.input : "");
@@ -448,8 +495,33 @@ int run(const Options& options) {
                      positions);
     };
   }
-  const RunResult result =
-      isk::samples::runFrames(rig, clip, skinner, run_options);
+  // For the tests of what a failed run leaves behind: frame N fails as a
+  // write would (after the frames before it were written).
+  if (const char* fail_at = std::getenv("ISK_SKIN_FAIL_AT_FRAME")) {
+    const int at = std::atoi(fail_at);
+    run_options.on_frame = [at, inner = run_options.on_frame](
+                               int frame, const isk::Matrix3Xf& positions,
+                               const isk::Matrix3Xf& normals) {
+      if (inner) inner(frame, positions, normals);
+      if (frame == at) {
+        throw isk::Error(isk::ErrorCode::kIo,
+                         "injected failure (ISK_SKIN_FAIL_AT_FRAME=" +
+                             std::to_string(at) + ")");
+      }
+    };
+  }
+  RunResult result;
+  try {
+    result = isk::samples::runFrames(rig, clip, skinner, run_options);
+  } catch (const isk::Error& error) {
+    // The report is the mark of a finished run: none for this one.
+    throw isk::Error(error.code(),
+                     std::string(error.what()) +
+                         (options.report.empty()
+                              ? std::string()
+                              : "; no report written to " + options.report),
+                     error.clStatus());
+  }
 
   if (!options.report.empty()) {
     const fs::path parent = fs::path(options.report).parent_path();
@@ -545,7 +617,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"obj", "ply"}))
       ->capture_default_str();
   app.add_flag("--overwrite", options.overwrite,
-               "replace the frame files of an earlier run in --out");
+               "write into a non-empty --out folder (replacing the frame "
+               "files of an earlier run) and replace an existing --report");
   CLI::Option* const operator_option =
       app.add_option("--operator", options.default_operator,
                      "composition operator at every joint: union, blend or "

@@ -33,9 +33,10 @@ class CpuSkinning {
   // Results of the last run, #V by 3.
   const Matrix3Xf& positions() const { return positions_; }
   const Matrix3Xf& normals() const { return normals_; }
-  // Copies, for symmetry with ClSkinning.
-  void readPositions(Matrix3Xf& out) const { out = positions_; }
-  void readNormals(Matrix3Xf& out) const { out = normals_; }
+  // Copies, for symmetry with ClSkinning. Throw isk::Error(kInvalidArgument)
+  // before the first run() and on a moved-from object, as run() does.
+  void readPositions(Matrix3Xf& out) const;
+  void readNormals(Matrix3Xf& out) const;
 
   // Milliseconds per stage of the last run.
   const SkinningStageTimes& lastTimes() const { return times_; }
@@ -43,6 +44,8 @@ class CpuSkinning {
   int vertexCount() const { return static_cast<int>(rest_positions_.rows()); }
 
  private:
+  void checkUsable(const char* what, bool needs_run) const;
+
   Matrix3Xf rest_positions_, rest_normals_;
   TriangleMatrix triangles_;
   SkinWeights weights_;
@@ -50,6 +53,7 @@ class CpuSkinning {
   VertexTriangleAdjacency adjacency_;
   Matrix3Xf positions_, skinned_normals_, normals_;
   SkinningStageTimes times_;
+  bool has_run_ = false;
 };
 
 }  // namespace isk

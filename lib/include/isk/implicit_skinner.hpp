@@ -97,17 +97,44 @@ class ImplicitSkinner {
   // Stage times of the last run() (readback: of the last reads).
   const ImplicitStageTimes& lastTimes() const { return times_; }
   // What the skinner was built from, and its parts (for stage-by-stage use,
-  // interop and tests).
-  const ImplicitFields& fields() const { return *fields_; }
-  const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
-  ClSkinning& skinning() { return *skinning_; }
-  ClFieldEvaluation& fieldEvaluation() { return *field_evaluation_; }
-  ClSurfaceTracking& tracking() { return *tracking_; }
+  // interop and tests). They throw isk::Error(kInvalidArgument) on a
+  // moved-from skinner, as run() and the reads do (the reads also before
+  // run()).
+  const ImplicitFields& fields() const {
+    checkUsable("fields", false);
+    return *fields_;
+  }
+  const TrackingMesh& trackingMesh() const {
+    checkUsable("trackingMesh", false);
+    return *tracking_mesh_;
+  }
+  ClSkinning& skinning() {
+    checkUsable("skinning", false);
+    return *skinning_;
+  }
+  ClFieldEvaluation& fieldEvaluation() {
+    checkUsable("fieldEvaluation", false);
+    return *field_evaluation_;
+  }
+  ClSurfaceTracking& tracking() {
+    checkUsable("tracking", false);
+    return *tracking_;
+  }
   const ImplicitSkinnerOptions& options() const { return options_; }
-  ClContext& context() { return *context_; }
-  int vertexCount() const { return tracking_mesh_->vertexCount(); }  // #V
+  ClContext& context() {
+    checkUsable("context", false);
+    return *context_;
+  }
+  int vertexCount() const {  // #V
+    checkUsable("vertexCount", false);
+    return tracking_mesh_->vertexCount();
+  }
 
  private:
+  // Throws isk::Error(kInvalidArgument) naming `what` on a moved-from
+  // skinner, or before the first run() when `needs_run`.
+  void checkUsable(const char* what, bool needs_run) const;
+
   std::shared_ptr<ClContext> context_;
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
@@ -117,6 +144,7 @@ class ImplicitSkinner {
   std::unique_ptr<ClFieldEvaluation> field_evaluation_;
   std::unique_ptr<ClSurfaceTracking> tracking_;
   ImplicitStageTimes times_;
+  bool has_run_ = false;
 };
 
 // The CPU reference of ImplicitSkinner (CpuSkinning + CpuSurfaceTracking):
@@ -132,32 +160,57 @@ class CpuImplicitSkinner {
                      std::shared_ptr<const ImplicitFields> fields,
                      const ImplicitSkinnerOptions& options = {});
 
-  // One frame: #joints skinning transforms. Throws
+  // One frame: #joints skinning transforms. As ImplicitSkinner's:
   // isk::Error(kInvalidArgument) for a pose of the wrong size or with
-  // non-finite transforms.
+  // non-finite transforms, a moved-from skinner, or a result asked for
+  // before run().
   void run(const TransformList& skinning);
   // Results of the last frame: #V by 3, model space; unit normals.
-  const Matrix3Xf& positions() const { return tracking_->positions(); }
-  const Matrix3Xf& normals() const { return tracking_->normals(); }
+  const Matrix3Xf& positions() const {
+    checkUsable("positions", true);
+    return tracking_->positions();
+  }
+  const Matrix3Xf& normals() const {
+    checkUsable("normals", true);
+    return tracking_->normals();
+  }
   void readPositions(Matrix3Xf& out) const { out = positions(); }
   void readNormals(Matrix3Xf& out) const { out = normals(); }
   // Vertices stopped at a contact in the last frame.
   int contactCount() const;
 
   const ImplicitStageTimes& lastTimes() const { return times_; }
-  const ImplicitFields& fields() const { return *fields_; }
-  const TrackingMesh& trackingMesh() const { return *tracking_mesh_; }
-  CpuSkinning& skinning() { return *skinning_; }
-  CpuSurfaceTracking& tracking() { return *tracking_; }
-  int vertexCount() const { return tracking_mesh_->vertexCount(); }  // #V
+  const ImplicitFields& fields() const {
+    checkUsable("fields", false);
+    return *fields_;
+  }
+  const TrackingMesh& trackingMesh() const {
+    checkUsable("trackingMesh", false);
+    return *tracking_mesh_;
+  }
+  CpuSkinning& skinning() {
+    checkUsable("skinning", false);
+    return *skinning_;
+  }
+  CpuSurfaceTracking& tracking() {
+    checkUsable("tracking", false);
+    return *tracking_;
+  }
+  int vertexCount() const {  // #V
+    checkUsable("vertexCount", false);
+    return tracking_mesh_->vertexCount();
+  }
 
  private:
+  void checkUsable(const char* what, bool needs_run) const;
+
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
   std::unique_ptr<const TrackingMesh> tracking_mesh_;
   std::unique_ptr<CpuSkinning> skinning_;
   std::unique_ptr<CpuSurfaceTracking> tracking_;
   ImplicitStageTimes times_;
+  bool has_run_ = false;
 };
 
 }  // namespace isk

@@ -265,7 +265,8 @@ class CpuSurfaceTracking {
   // begin: the frame's pose (#joints skinning transforms) and the skinned
   // positions (#V by 3) and normals (fallback of the normals stage).
   // Throws isk::Error(kInvalidArgument) for sizes that do not match the
-  // mesh or a pose shorter than the fields' joints.
+  // mesh or a pose shorter than the fields' joints. The other stages and
+  // setState() throw isk::Error(kInvalidArgument) before the first begin().
   void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
              const Matrix3Xf& skinned_normals);
   void project(int steps);  // `steps` projection steps (eq. 4)
@@ -319,10 +320,13 @@ class CpuSurfaceTracking {
   Eigen::Vector4f sampleAt(const ComposedFieldSampler& sampler, int v,
                            const Eigen::Vector3f& x, Eigen::Vector4f* per_field,
                            HomeSamples* home) const;
+  // Throws isk::Error(kInvalidArgument) naming `stage` before begin().
+  void checkBegun(const char* stage) const;
   Matrix4Xf prev_;          // previous unit gradient, w = 1 when set
   Matrix4Xf relax_frames_;  // see relaxFrames()
   std::vector<float> beta_, beta_scratch_;
   TrackingStageTimes times_;
+  bool begun_ = false;  // a frame's state exists (begin() was called)
 };
 
 }  // namespace isk

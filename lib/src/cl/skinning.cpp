@@ -77,6 +77,19 @@ void ClSkinning::run(SkinningMethod method, const TransformList& skinning,
   collectTimes();
 }
 
+void ClSkinning::checkUsable(const char* what, bool needs_run) const {
+  if (!context_) {
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ClSkinning::") + what +
+                    ": the object was moved from (it holds no mesh)");
+  }
+  if (needs_run && !has_run_) {
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ClSkinning::") + what +
+                    " before run(): there is no result yet");
+  }
+}
+
 void ClSkinning::collectTimes() {
   if (!pending_) return;
   pending_ = false;
@@ -94,6 +107,7 @@ void ClSkinning::collectTimes() {
 
 void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
                          bool recompute_normals) {
+  checkUsable("run", false);
   collectTimes();  // a frame still pending reads staging_'s old contents
   if (static_cast<int>(skinning.size()) != joint_count_) {
     throw Error(ErrorCode::kInvalidArgument,
@@ -168,6 +182,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
       pending_ = true;
       pending_normals_ = recompute_normals;
     }
+    has_run_ = true;
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClSkinning::run (") +
                         skinningMethodName(method) + ") on " +
@@ -185,6 +200,7 @@ void ClSkinning::readNormals(Matrix3Xf& out) {
 
 double ClSkinning::readBuffer(const cl::Buffer& buffer, Matrix3Xf& out,
                               const char* what) {
+  checkUsable(what, true);
   out.resize(vertex_count_, 3);
   try {
     cl::Event read;

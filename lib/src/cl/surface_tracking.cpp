@@ -218,13 +218,23 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     begin_.setArg(6, prev_gradients_);
     begin_.setArg(7, relax_frames_);
     launch(begin_, kProjection);
+    begun_ = true;
   } catch (const cl::Error& e) {
     throwClError(e,
                  "ClSurfaceTracking::begin on " + context_->info().describe());
   }
 }
 
+void ClSurfaceTracking::checkBegun(const char* stage) const {
+  if (!begun_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ClSurfaceTracking::") + stage +
+                    " before begin(): no frame has been started (no pose, "
+                    "no positions)");
+}
+
 void ClSurfaceTracking::project(int steps) {
+  checkBegun("project");
   const float cos_contact = std::cos(options_.contact_angle_degrees *
                                      static_cast<float>(M_PI) / 180.f);
   const float max_step = options_.max_step * diagonal_;
@@ -254,6 +264,7 @@ void ClSurfaceTracking::project(int steps) {
 }
 
 void ClSurfaceTracking::relax() {
+  checkBegun("relax");
   try {
     relax_.setArg(0, static_cast<cl_uint>(vertex_count_));
     relax_.setArg(1, positions_[current_]);
@@ -273,6 +284,7 @@ void ClSurfaceTracking::relax() {
 }
 
 void ClSurfaceTracking::smooth() {
+  checkBegun("smooth");
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
     const float radius = options_.smoothing_radius * diagonal_;
@@ -326,6 +338,7 @@ void ClSurfaceTracking::smooth() {
 }
 
 void ClSurfaceTracking::finish() {
+  checkBegun("finish");
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
     copy_duplicates_.setArg(0, n);
@@ -370,6 +383,7 @@ void ClSurfaceTracking::setState(const Matrix3Xf& positions,
                                  const std::vector<TrackState>& states,
                                  const Matrix4Xf& prev_gradients,
                                  const Matrix4Xf* relax_frames) {
+  checkBegun("setState");
   if (positions.rows() != vertex_count_ ||
       static_cast<int>(states.size()) != vertex_count_ ||
       prev_gradients.rows() != vertex_count_ ||
@@ -397,6 +411,7 @@ void ClSurfaceTracking::setState(const Matrix3Xf& positions,
 
 void ClSurfaceTracking::readFloats(const cl::Buffer& buffer, void* out,
                                    size_t bytes, const char* what) {
+  checkBegun(what);
   try {
     context_->queue().enqueueReadBuffer(buffer, CL_TRUE, 0, bytes, out);
   } catch (const cl::Error& e) {

@@ -45,7 +45,9 @@ class ClSkinning {
   // Waits for the last enqueue() and fills lastTimes().
   void collectTimes();
 
-  // Blocking reads of the last run's results (#V by 3).
+  // Blocking reads of the last run's results (#V by 3). Throw
+  // isk::Error(kInvalidArgument) before the first run() and on a moved-from
+  // object, as run() does.
   void readPositions(Matrix3Xf& out);
   void readNormals(Matrix3Xf& out);
 
@@ -62,6 +64,9 @@ class ClSkinning {
   int vertexCount() const { return vertex_count_; }
 
  private:
+  // Throws isk::Error(kInvalidArgument) naming `what` on a moved-from
+  // object, or before the first run when `needs_run`.
+  void checkUsable(const char* what, bool needs_run) const;
   // Blocking read of a #V by 3 result; returns its milliseconds.
   double readBuffer(const cl::Buffer& buffer, Matrix3Xf& out, const char* what);
 
@@ -78,6 +83,7 @@ class ClSkinning {
   SkinningStageTimes times_;
   cl::Event upload_event_, skin_event_, normals_event_;  // of enqueue()
   bool pending_ = false, pending_normals_ = false;
+  bool has_run_ = false;  // a frame was enqueued: results can be read
 };
 
 }  // namespace isk

@@ -31,7 +31,9 @@ class ClSurfaceTracking {
   ClSurfaceTracking(ClFieldEvaluation& fields, const TrackingMesh& mesh,
                     const SurfaceTrackingOptions& options = {});
 
-  // Stage by stage, as CpuSurfaceTracking (enqueued, not waited for).
+  // Stage by stage, as CpuSurfaceTracking (enqueued, not waited for). The
+  // other stages, setState() and the reads throw isk::Error
+  // (kInvalidArgument) before the first begin().
   // begin: the frame's pose (#joints) and the skinned positions and normals
   // on the device (#V * 3 packed floats each; normals are the fallback of
   // the normals stage).
@@ -92,6 +94,9 @@ class ClSurfaceTracking {
   void setContactArgs(cl::Kernel& kernel, cl_uint first_index) const;
   void readFloats(const cl::Buffer& buffer, void* out, size_t bytes,
                   const char* what);
+  // Throws isk::Error(kInvalidArgument) naming `stage` before begin().
+  void checkBegun(const char* stage) const;
+  bool begun_ = false;
 
   ClFieldEvaluation* fields_;
   std::shared_ptr<ClContext> context_;
