@@ -20,7 +20,17 @@
 //               library's per-context cache).
 // Each cold iteration leaves one entry in POCL_CACHE_DIR.
 //
-//   isk_bench --benchmark_filter='^OperatorTable/|^ProgramBuild/'
+// FieldBuild/<model>/cached-load: isk::buildImplicitFields with the field
+// cache (isk/field_cache.hpp) hitting: partition, samples + fits + grids
+// read and validated from the cache file (written once before the loop into
+// a temporary folder removed afterwards; in the OS page cache), composition
+// and iso values; all threads. FieldBuild/<model>/threads:<n>
+// (bench_fields.cpp) is the same build without the cache; the counter
+// uncached_ms holds one uncached build measured in the same process, and
+// speedup their ratio; read_ms, partition_ms and iso_ms split the cached
+// load (the rest: composition and freeing the previous fields).
+//
+//   isk_bench --benchmark_filter='^OperatorTable/|^ProgramBuild/|cached-load'
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
@@ -32,6 +42,8 @@
 
 #include "bench_support.hpp"
 #include "isk/composition_operator.hpp"
+#include "isk/field_cache.hpp"
+#include "isk/implicit_fields.hpp"
 
 namespace isk::bench {
 namespace {
@@ -77,6 +89,60 @@ void loadTable(benchmark::State& state, CompositionOperator op) {
   if (!ok) state.SkipWithError(("cache load failed: " + error).c_str());
   state.counters["table_MiB"] = bytes / (1024.0 * 1024.0);
   state.SetLabel("128^3, from " + operatorTableCacheFileName(op, 128));
+}
+
+void loadCachedFields(benchmark::State& state, const Model& model) {
+  const Rig& rig = rigOf(model);
+  std::random_device random;
+  const fs::path folder =
+      fs::temp_directory_path() /
+      ("isk-bench-field-cache-" + std::to_string(::getpid()) + "-" +
+       std::to_string(random()));
+  ImplicitFieldsOptions options;
+  options.cache = true;
+  options.cache_folder = folder.string();
+  // Uncached build (its time for the ratio), then the cache file.
+  ImplicitFieldsOptions plain;
+  const auto start = std::chrono::steady_clock::now();
+  benchmark::DoNotOptimize(buildImplicitFields(rig, plain).iso_values.data());
+  const double uncached_ms = std::chrono::duration<double, std::milli>(
+                                 std::chrono::steady_clock::now() - start)
+                                 .count();
+  const ImplicitFields first = buildImplicitFields(rig, options);
+  std::error_code ec;
+  const double file_mib =
+      fs::file_size(first.cache_file, ec) / (1024.0 * 1024.0);
+  bool loaded = true;
+  double total = 0, load = 0, iso = 0, partition = 0;
+  int64_t n = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const ImplicitFields fields = buildImplicitFields(rig, options);
+    total += std::chrono::duration<double, std::milli>(
+                 std::chrono::steady_clock::now() - t0)
+                 .count();
+    ++n;
+    load += fields.times.sampling_ms;  // the cache read, when loaded
+    iso += fields.times.iso_ms;
+    partition += fields.times.partition_ms;
+    loaded = loaded && fields.cache_origin == FieldCacheOrigin::kLoaded;
+    benchmark::DoNotOptimize(fields.iso_values.data());
+  }
+  fs::remove_all(folder, ec);
+  if (!loaded) {
+    state.SkipWithError("the field cache did not hit");
+    return;
+  }
+  state.counters["uncached_ms"] = uncached_ms;
+  state.counters["speedup"] = n > 0 ? uncached_ms / (total / n) : 0;
+  state.counters["file_MiB"] = file_mib;
+  if (n > 0) {
+    state.counters["read_ms"] = load / n;
+    state.counters["iso_ms"] = iso / n;
+    state.counters["partition_ms"] = partition / n;
+  }
+  state.counters["fields"] = first.grids.fieldCount();
+  state.SetLabel("from " + fieldCacheFileName(rig, options));
 }
 
 // The extra build options the library uses for `kernel` on `device`.
@@ -147,6 +213,13 @@ void registerPrecomputeBenchmarks() {
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->Iterations(10);
+  }
+  for (const Model& model : models()) {
+    if (!available(model)) continue;
+    registerGuarded(("FieldBuild/" + model.name + "/cached-load").c_str(),
+                    loadCachedFields, model)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
   }
   for (const std::string& kernel : embeddedKernelNames()) {
     for (const ClDeviceInfo& device : devices()) {

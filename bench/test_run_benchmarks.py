@@ -134,6 +134,7 @@ class Render(unittest.TestCase):
                 smoothing_ms=1, normals_ms=0.5, contact=3),
             run("FieldBuild/M/threads:1", 100.0, vertices=1000, joints=4,
                 fields=4, field_MiB=2),
+            run("FieldBuild/M/cached-load", 10.0, uncached_ms=100.0),
         ])
         text = run_benchmarks.render(data, "cmd")
         self.assertIn("| M | 1,000 | dqs | 2.000 | 500 | 4.000 | 2.00x", text)
@@ -144,6 +145,8 @@ class Render(unittest.TestCase):
         self.assertIn("### Vertex count: not run", text)
         # threads:1 is ours, not Google Benchmark's.
         self.assertIn("| M | 1,000 | 4 | 4 | 2.0 | 100.0 |", text)
+        # The cached load and its speed-up over the build.
+        self.assertIn("| 10.00 (10.0x) |", text)
 
     def test_failed_runs_are_listed(self):
         failed = run("Implicit/M/opencl:0", 1.0)

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -320,6 +321,39 @@ PanelCounts countPanel(const Picture& picture, int p, int q, int lo, int hi) {
     }
   }
   return counts;
+}
+
+// out/<rig>/animation.glb: the three methods side by side, one morph target
+// per frame, one weights channel per mesh (the writer's own checks are in
+// gltf_export_test.cpp).
+TEST_F(DemoRun, WritesAnAnimatedGltfPerRig) {
+  ASSERT_EQ(run_.exit_code, 0) << test::describeRun("isk-demo", args_, run_);
+  for (const std::string& rig : DemoRun::rigs()) {
+    const std::string path = out_ + "/" + rig + "/animation.glb";
+    const std::string bytes = test::readFile(path);
+    ASSERT_GT(bytes.size(), 20u) << path;
+    EXPECT_EQ(bytes.substr(0, 4), "glTF") << path;
+    uint32_t json_length = 0;
+    for (int i = 3; i >= 0; --i)
+      json_length =
+          (json_length << 8) | static_cast<unsigned char>(bytes[12 + i]);
+    ASSERT_LE(20u + json_length, bytes.size()) << path;
+    const nlohmann::json doc =
+        nlohmann::json::parse(bytes.substr(20, json_length));
+    ASSERT_EQ(doc["meshes"].size(), kMethods.size()) << path;
+    for (size_t m = 0; m < kMethods.size(); ++m) {
+      EXPECT_EQ(doc["meshes"][m]["name"], kMethods[m]) << path;
+      EXPECT_EQ(doc["meshes"][m]["primitives"][0]["targets"].size(),
+                static_cast<size_t>(std::stoi(kFrames)))
+          << path;
+    }
+    EXPECT_EQ(doc["animations"][0]["channels"].size(), kMethods.size()) << path;
+    // Side by side: distinct x offsets.
+    EXPECT_LT(doc["nodes"][0]["translation"][0].get<double>(),
+              doc["nodes"][2]["translation"][0].get<double>())
+        << path;
+  }
+  EXPECT_NE(run_.output.find("animation.glb"), std::string::npos);
 }
 
 TEST_F(DemoRun, ComparePicturesShowTheFoldAndTheContact) {

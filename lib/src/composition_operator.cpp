@@ -19,6 +19,7 @@
 #include <random>
 #include <utility>
 
+#include "cache_file.hpp"
 #include "isk/error.hpp"
 #include "parallel_for.hpp"
 #include "trilinear.hpp"
@@ -420,8 +421,6 @@ size_t nodeFloatCount(int resolution) {
   return 4 * n * n * n;
 }
 
-std::string errnoText() { return std::strerror(errno); }
-
 }  // namespace
 
 std::string operatorTableCacheFolder() {
@@ -456,19 +455,6 @@ bool saveOperatorTable(const OperatorTable& table, const std::string& path,
   if (table.nodes.size() != nodeFloatCount(table.resolution))
     return fail("the table holds " + std::to_string(table.nodes.size()) +
                 " floats, not 4 * " + std::to_string(table.resolution) + "^3");
-  const fs::path target(path);
-  std::error_code ec;
-  if (target.has_parent_path()) {
-    fs::create_directories(target.parent_path(), ec);
-    if (ec)
-      return fail("cannot create folder '" + target.parent_path().string() +
-                  "': " + ec.message());
-  }
-  // Only ever replace a regular file of our own name.
-  const fs::file_status status = fs::symlink_status(target, ec);
-  if (fs::exists(status) && !fs::is_regular_file(status))
-    return fail("'" + path + "' exists and is not a regular file");
-
   CacheHeader header{};
   std::memcpy(header.magic, kCacheMagic, sizeof(kCacheMagic));
   header.format_version = kCacheFormatVersion;
@@ -479,49 +465,11 @@ bool saveOperatorTable(const OperatorTable& table, const std::string& path,
   header.float_count = table.nodes.size();
   header.checksum = nodesChecksum(table.nodes);
 
-  // A fresh temporary file beside the target (O_EXCL: never an existing one).
-  static std::atomic<unsigned> counter{0};
-  std::random_device random;
-  std::string temp;
-  int fd = -1;
-  for (int attempt = 0; attempt < 16 && fd < 0; ++attempt) {
-    temp = path + ".tmp-" + std::to_string(::getpid()) + "-" +
-           std::to_string(counter++) + "-" + std::to_string(random());
-    fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
-    if (fd < 0 && errno != EEXIST)
-      return fail("cannot create '" + temp + "': " + errnoText());
-  }
-  if (fd < 0)
-    return fail("cannot create a temporary file beside '" + path + "'");
-  auto write_all = [&](const void* data, size_t bytes) {
-    const char* p = static_cast<const char*>(data);
-    while (bytes > 0) {
-      const ssize_t n = ::write(fd, p, bytes);
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        return false;
-      }
-      p += n;
-      bytes -= static_cast<size_t>(n);
-    }
-    return true;
-  };
-  const bool written =
-      write_all(&header, sizeof(header)) &&
-      write_all(table.nodes.data(), table.nodes.size() * sizeof(float));
-  const std::string write_error = written ? "" : errnoText();
-  const bool closed = ::close(fd) == 0;
-  if (!written || !closed) {
-    ::unlink(temp.c_str());
-    return fail("cannot write '" + temp +
-                "': " + (written ? errnoText() : write_error));
-  }
-  if (::rename(temp.c_str(), path.c_str()) != 0) {
-    const std::string why = errnoText();
-    ::unlink(temp.c_str());
-    return fail("cannot rename '" + temp + "' to '" + path + "': " + why);
-  }
-  return true;
+  return detail::writeFileAtomically(
+      path,
+      {{&header, sizeof(header)},
+       {table.nodes.data(), table.nodes.size() * sizeof(float)}},
+      error);
 }
 
 bool loadOperatorTable(const std::string& path, CompositionOperator op,

@@ -2,9 +2,12 @@
 
 #include <array>
 #include <chrono>
+#include <cstdio>
+#include <filesystem>
 #include <map>
 
 #include "isk/error.hpp"
+#include "isk/field_cache.hpp"
 #include "parallel_for.hpp"
 #include "stopwatch.hpp"
 
@@ -52,6 +55,20 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
 
 }  // namespace
 
+const char* fieldCacheOriginName(FieldCacheOrigin origin) {
+  switch (origin) {
+    case FieldCacheOrigin::kOff:
+      return "off";
+    case FieldCacheOrigin::kBuilt:
+      return "built";
+    case FieldCacheOrigin::kLoaded:
+      return "loaded";
+    case FieldCacheOrigin::kRebuilt:
+      return "rebuilt";
+  }
+  return "?";
+}
+
 ImplicitFields buildImplicitFields(const Rig& rig,
                                    const ImplicitFieldsOptions& options) {
   // 256^3 float4 is already 256 MiB per bone.
@@ -68,6 +85,17 @@ ImplicitFields buildImplicitFields(const Rig& rig,
                 "buildImplicitFields: culling_h must be in [0, 0.5)");
   // The rig first, named by its source (partitionMesh validates it again).
   rig.validate().throwIfFailed("buildImplicitFields: " + rig.source);
+  for (const auto& [name, samples] : options.joint_samples) {
+    if (rig.skeleton.find(name) < 0)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "buildImplicitFields: joint_samples names joint '" + name +
+                      "', which the skeleton does not have");
+    if (samples < 1 || samples > 100000)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "buildImplicitFields: joint_samples['" + name +
+                      "'] must be in [1, 100000], got " +
+                      std::to_string(samples));
+  }
   validateCompositionOptions(rig.skeleton, options.composition)
       .throwIfFailed("buildImplicitFields");
   auto report = [&](const char* stage, float fraction) {
@@ -82,74 +110,127 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   out.warnings = out.partition.warnings;
   report("partition", 1);
   out.times.partition_ms = detail::millisecondsSince(start);
-
-  start = std::chrono::steady_clock::now();
   const Skeleton& skeleton = rig.skeleton;
-  const std::vector<int>& joints = out.partition.field_joints;
-  std::vector<BoneSamples> samples(joints.size());
-  for (size_t i = 0; i < joints.size(); ++i) {
-    const int j = joints[i];
-    const std::string name = "joint '" + skeleton.joints[j].name + "'";
-    samples[i] = sampleBonePart(rig.mesh, out.partition, j, options.sampling);
-    if (samples[i].all().size() < 4 && samples[i].culled > 0) {
-      BoneSamplingOptions uncut = options.sampling;
-      uncut.culling_h = 0;
-      samples[i] = sampleBonePart(rig.mesh, out.partition, j, uncut);
-      out.warnings.push_back(name +
-                             ": fewer than 4 samples after culling; "
-                             "sampled without culling planes");
-    }
-    if (samples[i].all().size() < 4) {
-      samples[i].surface = vertexSamples(rig.mesh, out.partition, j);
-      out.warnings.push_back(
-          name + ": part too small for Poisson-disk sampling (" +
-          std::to_string(out.partition.part_vertices[j].size()) +
-          " vertices); its vertices are the samples");
-    }
-    report("sampling", static_cast<float>(i + 1) / joints.size());
-  }
-  if (options.edit_samples) options.edit_samples(samples);
-  out.times.sampling_ms = detail::millisecondsSince(start);
 
-  start = std::chrono::steady_clock::now();
-  std::vector<BoneField> fields(samples.size());
-  std::vector<std::vector<std::string>> fit_warnings(samples.size());
-  std::vector<char> fitted(samples.size(), 0);
-  parallelFor(
-      static_cast<int>(samples.size()), threads,
-      [&](int i) {
-        try {
-          fields[i] = fitBoneField(skeleton, rig.mesh.positions, out.partition,
-                                   samples[i], &fit_warnings[i]);
-          fitted[i] = 1;
-        } catch (const Error& e) {
-          fit_warnings[i].push_back(std::string(e.what()) +
-                                    "; this bone gets no field");
-        }
-      },
-      [&](float f) { report("fitting", f); });
-  for (size_t i = 0; i < samples.size(); ++i) {
-    out.warnings.insert(out.warnings.end(), fit_warnings[i].begin(),
-                        fit_warnings[i].end());
-    if (!fitted[i]) continue;
-    out.samples.push_back(std::move(samples[i]));
-    out.fields.push_back(std::move(fields[i]));
+  // The cache: samples, fits and grids of this rig and these parameters.
+  std::string cache_path;
+  if (options.cache && !options.edit_samples) {
+    const std::string folder = options.cache_folder.empty()
+                                   ? operatorTableCacheFolder()
+                                   : options.cache_folder;
+    if (!folder.empty())
+      cache_path =
+          (std::filesystem::path(folder) / fieldCacheFileName(rig, options))
+              .string();
   }
-  out.times.fitting_ms = detail::millisecondsSince(start);
+  bool loaded = false;
+  if (!cache_path.empty()) {
+    out.cache_file = cache_path;
+    out.cache_origin = FieldCacheOrigin::kBuilt;
+    std::error_code ec;
+    if (std::filesystem::exists(
+            std::filesystem::symlink_status(cache_path, ec))) {
+      start = std::chrono::steady_clock::now();
+      report("loading", 0);
+      std::string why;
+      if (loadFieldCache(cache_path, rig, options, &out, &why)) {
+        loaded = true;
+        out.cache_origin = FieldCacheOrigin::kLoaded;
+        out.times.sampling_ms = detail::millisecondsSince(start);
+        report("loading", 1);
+      } else {
+        out.cache_origin = FieldCacheOrigin::kRebuilt;
+        out.cache_note = why;
+        out.warnings = out.partition.warnings;
+        std::fprintf(stderr,
+                     "isk: field cache unusable (%s); building the fields "
+                     "again\n",
+                     why.c_str());
+      }
+    }
+  }
+  if (!loaded) {
+    start = std::chrono::steady_clock::now();
+    const std::vector<int>& joints = out.partition.field_joints;
+    std::vector<BoneSamples> samples(joints.size());
+    for (size_t i = 0; i < joints.size(); ++i) {
+      const int j = joints[i];
+      const std::string name = "joint '" + skeleton.joints[j].name + "'";
+      BoneSamplingOptions sampling = options.sampling;
+      if (const auto it = options.joint_samples.find(skeleton.joints[j].name);
+          it != options.joint_samples.end())
+        sampling.target_samples = it->second;
+      samples[i] = sampleBonePart(rig.mesh, out.partition, j, sampling);
+      if (samples[i].all().size() < 4 && samples[i].culled > 0) {
+        BoneSamplingOptions uncut = sampling;
+        uncut.culling_h = 0;
+        samples[i] = sampleBonePart(rig.mesh, out.partition, j, uncut);
+        out.warnings.push_back(name +
+                               ": fewer than 4 samples after culling; "
+                               "sampled without culling planes");
+      }
+      if (samples[i].all().size() < 4) {
+        samples[i].surface = vertexSamples(rig.mesh, out.partition, j);
+        out.warnings.push_back(
+            name + ": part too small for Poisson-disk sampling (" +
+            std::to_string(out.partition.part_vertices[j].size()) +
+            " vertices); its vertices are the samples");
+      }
+      report("sampling", static_cast<float>(i + 1) / joints.size());
+    }
+    if (options.edit_samples) options.edit_samples(samples);
+    out.times.sampling_ms = detail::millisecondsSince(start);
 
-  start = std::chrono::steady_clock::now();
-  out.grids.resolution = options.grid_resolution;
-  out.grids.grids.resize(out.fields.size());
-  parallelFor(
-      static_cast<int>(out.fields.size()), threads,
-      [&](int i) {
-        out.grids.grids[i] = bakeField(out.fields[i], options.grid_resolution);
-      },
-      [&](float f) { report("baking", f); });
-  out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
-  for (int i = 0; i < out.grids.fieldCount(); ++i)
-    out.grids.field_of_joint[out.grids.grids[i].joint] = i;
-  out.times.baking_ms = detail::millisecondsSince(start);
+    start = std::chrono::steady_clock::now();
+    std::vector<BoneField> fields(samples.size());
+    std::vector<std::vector<std::string>> fit_warnings(samples.size());
+    std::vector<char> fitted(samples.size(), 0);
+    parallelFor(
+        static_cast<int>(samples.size()), threads,
+        [&](int i) {
+          try {
+            fields[i] =
+                fitBoneField(skeleton, rig.mesh.positions, out.partition,
+                             samples[i], &fit_warnings[i]);
+            fitted[i] = 1;
+          } catch (const Error& e) {
+            fit_warnings[i].push_back(std::string(e.what()) +
+                                      "; this bone gets no field");
+          }
+        },
+        [&](float f) { report("fitting", f); });
+    for (size_t i = 0; i < samples.size(); ++i) {
+      out.warnings.insert(out.warnings.end(), fit_warnings[i].begin(),
+                          fit_warnings[i].end());
+      if (!fitted[i]) continue;
+      out.samples.push_back(std::move(samples[i]));
+      out.fields.push_back(std::move(fields[i]));
+    }
+    out.times.fitting_ms = detail::millisecondsSince(start);
+
+    start = std::chrono::steady_clock::now();
+    out.grids.resolution = options.grid_resolution;
+    out.grids.grids.resize(out.fields.size());
+    parallelFor(
+        static_cast<int>(out.fields.size()), threads,
+        [&](int i) {
+          out.grids.grids[i] =
+              bakeField(out.fields[i], options.grid_resolution);
+        },
+        [&](float f) { report("baking", f); });
+    out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
+    for (int i = 0; i < out.grids.fieldCount(); ++i)
+      out.grids.field_of_joint[out.grids.grids[i].joint] = i;
+    out.times.baking_ms = detail::millisecondsSince(start);
+    if (!cache_path.empty()) {
+      std::string why;
+      if (!saveFieldCache(out, rig, options, cache_path, &why))
+        std::fprintf(stderr,
+                     "isk: could not write the field cache (%s); the fields "
+                     "will be built again next time\n",
+                     why.c_str());
+    }
+  }  // !loaded
 
   start = std::chrono::steady_clock::now();
   report("operators", 0);

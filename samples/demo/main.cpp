@@ -38,10 +38,12 @@
 #include "isk/error.hpp"
 #include "isk/export.hpp"
 #include "isk/field_evaluation.hpp"
+#include "isk/gltf_export.hpp"
 #include "isk/implicit_fields.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/mesh_metrics.hpp"
 #include "isk/pose.hpp"
+#include "isk/rig_params.hpp"
 #include "isk/self_intersection.hpp"
 #include "isk/surface_tracking.hpp"
 #include "mesh_render.hpp"
@@ -473,7 +475,8 @@ struct FieldRow {
   std::string rig;
   int fields = 0;
   int samples_min = 0, samples_max = 0;  // fitted points per field
-  double fit_bake_ms = 0;
+  double fit_bake_ms = 0;                // the cache read when `cached`
+  bool cached = false;                   // fields loaded from the field cache
   double mib = 0;
   double iso_mean = 0, iso_max = 0;  // |iso value - 0.5| over the vertices
   std::string storage = "n/a";       // OpenCL storage, n/a without OpenCL
@@ -483,7 +486,8 @@ struct FieldRow {
 
 std::string formatFieldTable(const std::vector<FieldRow>& rows) {
   std::ostringstream out;
-  out << "| rig | fields | samples per field | fit+bake ms | field MiB | "
+  out << "| rig | fields | samples per field | fit+bake ms (cached: load "
+         "ms) | field MiB | "
          "mean abs(iso - 0.5) | max abs(iso - 0.5) | OpenCL storage | max "
          "abs(opencl - reference) field value | pictures |\n"
       << "|---|---:|---:|---:|---:|---:|---:|---|---:|---|\n";
@@ -502,6 +506,13 @@ std::string formatFieldTable(const std::vector<FieldRow>& rows) {
                                : "-")
         << " | " << pictures << " |\n";
   }
+  std::string cached;
+  for (const FieldRow& row : rows)
+    if (row.cached) cached += (cached.empty() ? "" : ", ") + row.rig;
+  if (!cached.empty())
+    out << "\nFields loaded from the field cache (ISK_CACHE_DIR; off "
+           "disables it), fit+bake column gives the load: "
+        << cached << "\n";
   return out.str();
 }
 
@@ -525,7 +536,11 @@ FieldRow runFields(const std::string& rig_name, const isk::Rig& rig,
     row.samples_min = i == 0 ? count : std::min(row.samples_min, count);
     row.samples_max = i == 0 ? count : std::max(row.samples_max, count);
   }
-  row.fit_bake_ms = fields.times.fitting_ms + fields.times.baking_ms;
+  // Loaded from the cache: nothing was fitted or baked; the read's time.
+  row.cached = fields.cache_origin == isk::FieldCacheOrigin::kLoaded;
+  row.fit_bake_ms = row.cached
+                        ? fields.times.sampling_ms
+                        : fields.times.fitting_ms + fields.times.baking_ms;
   row.mib = fields.grids.bytes() / (1024.0 * 1024.0);
   for (const float iso : fields.iso_values) {
     const double off = std::abs(iso - 0.5);
@@ -671,10 +686,28 @@ void Demo::runRig(const RigJob& job) {
   if (const auto it = fields_.find(job.fields_of); it != fields_.end()) {
     fields = it->second;
   } else {
+    // Cached on disk (ISK_CACHE_DIR; "off" disables it); an asset's
+    // <asset>.isk.json parameters are used when present.
+    isk::ImplicitFieldsOptions field_options;
+    field_options.cache = true;
+    const std::string params_path = isk::rigParamsPathFor(job.source);
+    std::error_code ec;
+    if (job.source.rfind("builtin:", 0) != 0 &&
+        fs::is_regular_file(params_path, ec)) {
+      isk::applyRigParams(isk::loadRigParams(params_path, &rig.skeleton),
+                          &field_options);
+      std::cerr << prefix << "parameters from " << params_path << "\n";
+    }
     fields = std::make_shared<const isk::ImplicitFields>(
-        isk::samples::buildFieldsWithProgress(
-            rig, {}, prefix + "building fields", prefix + "warning: "));
+        isk::samples::buildFieldsWithProgress(rig, field_options,
+                                              prefix + "building fields",
+                                              prefix + "warning: "));
     fields_[rig_name] = fields;
+    if (fields->cache_origin == isk::FieldCacheOrigin::kLoaded)
+      std::cerr << prefix << "fields loaded from the cache "
+                << fields->cache_file << "\n";
+    else if (fields->cache_origin == isk::FieldCacheOrigin::kRebuilt)
+      std::cerr << prefix << "fields rebuilt (" << fields->cache_note << ")\n";
   }
   // The paper's tracking, started from DQS, on the fields just built (with
   // the default options, which ImplicitSkinnerOptions::fields holds too).
@@ -701,6 +734,9 @@ void Demo::runRig(const RigJob& job) {
   std::cerr << "\n";
 
   isk::Matrix3Xf bent_positions[kMethodCount];
+  // The written frames of each method (OpenCL's when there is a device),
+  // played side by side in out/<rig>/animation.glb.
+  std::vector<isk::GltfTrack> tracks(kMethodCount);
   for (int m = 0; m < kMethodCount; ++m) {
     const MethodSpec& method = kMethods[m];
     const std::string frames_dir =
@@ -717,9 +753,13 @@ void Demo::runRig(const RigJob& job) {
     options.times = times;
     options.self_intersections = !opencl;
     options.on_frame = [&](int frame, const isk::Matrix3Xf& positions,
-                           const isk::Matrix3Xf&) {
+                           const isk::Matrix3Xf& normals) {
       reference_frames.push_back(positions);
       if (frame == bent.frame) bent_positions[m] = positions;
+      if (!opencl) {
+        tracks[m].positions.push_back(positions);
+        tracks[m].normals.push_back(normals);
+      }
     };
     if (!opencl) options.out_dir = frames_dir;
     const RunResult reference_result =
@@ -734,11 +774,13 @@ void Demo::runRig(const RigJob& job) {
     options.out_dir = frames_dir;
     options.self_intersections = true;
     options.on_frame = [&](int frame, const isk::Matrix3Xf& positions,
-                           const isk::Matrix3Xf&) {
+                           const isk::Matrix3Xf& normals) {
       const double distance =
           isk::maxVertexDistance(positions, reference_frames[frame]);
       max_difference = std::max(max_difference, distance / diagonal);
       if (frame == bent.frame) bent_positions[m] = positions;
+      tracks[m].positions.push_back(positions);
+      tracks[m].normals.push_back(normals);
     };
     const RunResult opencl_result =
         isk::samples::runFrames(rig, clip, *opencl, options);
@@ -762,6 +804,26 @@ void Demo::runRig(const RigJob& job) {
               << " ms/frame on OpenCL, "
               << formatNumber("%.3f", reference_result.frame.median)
               << " on the reference\n";
+  }
+
+  // LBS, DQS and implicit side by side, 1.2 bounding-box widths apart.
+  {
+    std::vector<isk::Matrix3Xf> all_frames;
+    for (const isk::GltfTrack& track : tracks)
+      all_frames.insert(all_frames.end(), track.positions.begin(),
+                        track.positions.end());
+    const float spacing = isk::gltfTrackSpacing(all_frames);
+    for (int m = 0; m < kMethodCount; ++m) {
+      tracks[m].name = kMethods[m].name;
+      tracks[m].offset = {spacing * (m - (kMethodCount - 1) / 2.f), 0, 0};
+    }
+    const std::string glb =
+        (fs::path(out_dir_) / rig_name / "animation.glb").string();
+    isk::writeAnimatedGltf(glb, rig.mesh.triangles, tracks,
+                           isk::gltfFrameTimes(times));
+    std::cerr << prefix << "animation " << glb << " (" << times.size()
+              << " frames of " << kMethodCount
+              << " methods side by side, morph targets)\n";
   }
 
   // The pictures, with the implicit pose skinned again for its states.

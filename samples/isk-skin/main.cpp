@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,10 +25,12 @@
 #include "isk/export.hpp"
 #include "isk/field_composition.hpp"
 #include "isk/field_evaluation.hpp"
+#include "isk/gltf_export.hpp"
 #include "isk/implicit_fields.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/pose.hpp"
 #include "isk/procedural.hpp"
+#include "isk/rig_params.hpp"
 #include "skin_runner.hpp"
 
 namespace {
@@ -54,7 +57,15 @@ struct Options {
   double bulge_strength = 1;
   double blend_theta = 0;
   bool composition_given = false;
+  bool operator_given = false;
   bool bulge_strength_given = false, blend_theta_given = false;
+
+  // Animated glTF (--gltf): the run's frames beside LBS and DQS.
+  std::string gltf;
+
+  // Per-joint parameters (--params, --save-params, <asset>.isk.json).
+  std::string params;
+  std::string save_params;
 
   // Surface tracking (--method implicit); defaults are the paper's.
   isk::SurfaceTrackingOptions tracking;
@@ -385,6 +396,149 @@ nlohmann::json makeReport(const Options& options, const isk::Rig& rig,
   return report;
 }
 
+// The parameters of --params FILE.json (or, without it, of
+// <INPUT>.isk.json when that file exists: said on stderr) with the command
+// line's operator options on top, as field options; written to
+// --save-params. Unset when neither a file nor --save-params is in play.
+// Throws isk::Error naming the file, the joint and the key.
+std::optional<isk::ImplicitFieldsOptions> loadParams(const Options& options,
+                                                     const isk::Rig& rig) {
+  const bool input_is_file = options.input.rfind("builtin:", 0) != 0;
+  std::string path = options.params;
+  if (path.empty() && input_is_file) {
+    const std::string beside = isk::rigParamsPathFor(options.input);
+    std::error_code ec;
+    if (fs::is_regular_file(beside, ec)) {
+      path = beside;
+      std::cerr << "isk-skin: parameters from " << path
+                << " (found next to the asset; --params FILE to choose "
+                   "another)\n";
+    }
+  }
+  if (path.empty() && options.save_params.empty()) return std::nullopt;
+  isk::RigParams params;
+  if (!path.empty()) {
+    params = isk::loadRigParams(path, &rig.skeleton);
+    if (!options.params.empty())
+      std::cerr << "isk-skin: parameters from " << path << "\n";
+  }
+  // The command line wins over the file, option by option.
+  const isk::CompositionOptions cli = parseCompositionOptions(options);
+  if (options.operator_given) params.default_operator = cli.default_operator;
+  if (options.bulge_strength_given) params.bulge_strength = cli.bulge_strength;
+  if (options.blend_theta_given) params.blend_theta = cli.blend_theta;
+  for (const auto& [name, op] : cli.joint_operators) {
+    if (rig.skeleton.find(name) < 0) continue;  // reported by the validation
+    params.joints[name].op = op;
+  }
+  if (!options.save_params.empty()) {
+    if (input_is_file && samePath(options.save_params, options.input)) {
+      throw isk::Error(
+          isk::ErrorCode::kInvalidArgument,
+          "--save-params " + options.save_params + " is the input file");
+    }
+    // Check what is written reads back (a joint key that no longer fits
+    // its operator after a command-line change is an error here).
+    isk::parseRigParams(isk::formatRigParams(params), options.save_params,
+                        &rig.skeleton);
+    const fs::path parent = fs::path(options.save_params).parent_path();
+    if (!parent.empty()) fs::create_directories(parent);
+    isk::saveRigParams(options.save_params, params);
+    std::cerr << "isk-skin: wrote the parameters to " << options.save_params
+              << "\n";
+  }
+  isk::ImplicitFieldsOptions field_options;
+  isk::applyRigParams(params, &field_options);
+  return field_options;
+}
+
+// Where the fields came from (isk/field_cache.hpp).
+void reportFieldCache(const isk::ImplicitFields& fields) {
+  switch (fields.cache_origin) {
+    case isk::FieldCacheOrigin::kOff:
+      break;
+    case isk::FieldCacheOrigin::kLoaded:
+      std::cerr << "isk-skin: fields loaded from the cache "
+                << fields.cache_file << "\n";
+      break;
+    case isk::FieldCacheOrigin::kBuilt:
+      std::cerr << "isk-skin: fields built and cached in " << fields.cache_file
+                << "\n";
+      break;
+    case isk::FieldCacheOrigin::kRebuilt:
+      std::cerr << "isk-skin: fields rebuilt (" << fields.cache_note
+                << ") and cached in " << fields.cache_file << "\n";
+      break;
+  }
+}
+
+// --gltf FILE.glb: refuses the input file and a folder as the target.
+void checkGltfTarget(const Options& options) {
+  const bool input_is_file = options.input.rfind("builtin:", 0) != 0;
+  if (input_is_file && samePath(options.gltf, options.input)) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     "--gltf " + options.gltf + " is the input file");
+  }
+  std::error_code ec;
+  if (fs::is_directory(options.gltf, ec)) {
+    throw isk::Error(isk::ErrorCode::kInvalidArgument,
+                     "--gltf " + options.gltf + " is a folder");
+  }
+}
+
+// Writes the run's frames (`positions`, `normals`) and, beside them, the
+// same frames skinned with LBS and DQS (those the run did not already
+// produce) to --gltf as an animated .glb (isk/gltf_export.hpp): tracks in
+// the order lbs, dqs, implicit, 1.2 bounding-box widths apart.
+void writeGltf(const Options& options, const isk::Rig& rig,
+               const isk::AnimationClip& clip, FrameSkinner& skinner,
+               const std::vector<double>& times,
+               std::vector<isk::Matrix3Xf> positions,
+               std::vector<isk::Matrix3Xf> normals) {
+  std::vector<isk::GltfTrack> tracks;
+  for (const std::string name : {"lbs", "dqs"}) {
+    isk::GltfTrack track;
+    track.name = name;
+    if (options.method == name) {
+      track.positions = std::move(positions);
+      track.normals = std::move(normals);
+    } else {
+      const isk::SkinningMethod method =
+          name == std::string("lbs") ? isk::SkinningMethod::kLinearBlend
+                                     : isk::SkinningMethod::kDualQuaternion;
+      for (const double t : times) {
+        isk::Matrix3Xf p, n;
+        skinner.skin(method, isk::samples::clipSkinning(rig.skeleton, clip, t),
+                     p, n);
+        track.positions.push_back(std::move(p));
+        track.normals.push_back(std::move(n));
+      }
+    }
+    tracks.push_back(std::move(track));
+  }
+  if (options.method == "implicit") {
+    isk::GltfTrack track;
+    track.name = "implicit";
+    track.positions = std::move(positions);
+    track.normals = std::move(normals);
+    tracks.push_back(std::move(track));
+  }
+  std::vector<isk::Matrix3Xf> all;
+  for (const isk::GltfTrack& track : tracks)
+    all.insert(all.end(), track.positions.begin(), track.positions.end());
+  const float spacing = isk::gltfTrackSpacing(all);
+  for (size_t i = 0; i < tracks.size(); ++i)
+    tracks[i].offset = {spacing * (i - (tracks.size() - 1) / 2.f), 0, 0};
+  const fs::path parent = fs::path(options.gltf).parent_path();
+  if (!parent.empty()) fs::create_directories(parent);
+  isk::writeAnimatedGltf(options.gltf, rig.mesh.triangles, tracks,
+                         isk::gltfFrameTimes(times));
+  std::cerr << "isk-skin: wrote " << options.gltf << " (" << times.size()
+            << " frames; " << tracks.size() << " meshes side by side:";
+  for (const isk::GltfTrack& track : tracks) std::cerr << " " << track.name;
+  std::cerr << ")\n";
+}
+
 int run(const Options& options) {
   if (options.input == "builtin:list") {
     for (const std::string& name : isk::builtinRigNames()) {
@@ -402,6 +556,8 @@ int run(const Options& options) {
     std::cerr << "isk-skin: warning: the tracking options have no effect "
                  "without --method implicit\n";
   }
+  // The input is never written: checked before it is even loaded.
+  if (!options.gltf.empty()) checkGltfTarget(options);
   const isk::SkinningMethod method = options.method == "lbs"
                                          ? isk::SkinningMethod::kLinearBlend
                                          : isk::SkinningMethod::kDualQuaternion;
@@ -423,7 +579,11 @@ int run(const Options& options) {
                        options.input + ": --joint-operator: " + valid.reason());
     }
   }
-  warnUnusedControllers(options, composition);
+  // Per-joint parameters: --params, else <asset>.isk.json beside the input,
+  // with the command line's operator options on top.
+  const std::optional<isk::ImplicitFieldsOptions> params_options =
+      loadParams(options, rig);
+  if (!params_options) warnUnusedControllers(options, composition);
 
   std::string clip_note;
   const isk::AnimationClip clip =
@@ -469,15 +629,19 @@ int run(const Options& options) {
   run_options.self_intersections = true;
 
   std::unique_ptr<IsoDriftProbe> probe;
-  if (options.composition_given || run_options.implicit) {
+  if (options.composition_given || run_options.implicit || params_options) {
     isk::ImplicitFieldsOptions field_options;
     field_options.composition = composition;
+    if (params_options) field_options = *params_options;
+    // Fields are cached on disk (ISK_CACHE_DIR; "off" disables it).
+    field_options.cache = true;
     const auto build_start = std::chrono::steady_clock::now();
     auto fields = std::make_shared<const isk::ImplicitFields>(
         isk::samples::buildFieldsWithProgress(rig, field_options,
                                               "isk-skin: building fields",
                                               "isk-skin: warning: "));
     const double build_ms = millisecondsSince(build_start);
+    reportFieldCache(*fields);
     if (run_options.implicit) {
       isk::ImplicitSkinnerOptions implicit_options;
       implicit_options.fields = field_options;
@@ -510,6 +674,18 @@ int run(const Options& options) {
       }
     };
   }
+  // --gltf: keep every frame of the run (see writeGltf below).
+  std::vector<isk::Matrix3Xf> gltf_positions, gltf_normals;
+  if (!options.gltf.empty()) {
+    auto previous = run_options.on_frame;
+    run_options.on_frame = [&, previous](int frame,
+                                         const isk::Matrix3Xf& positions,
+                                         const isk::Matrix3Xf& normals) {
+      if (previous) previous(frame, positions, normals);
+      gltf_positions.push_back(positions);
+      gltf_normals.push_back(normals);
+    };
+  }
   RunResult result;
   try {
     result = isk::samples::runFrames(rig, clip, skinner, run_options);
@@ -521,6 +697,10 @@ int run(const Options& options) {
                               ? std::string()
                               : "; no report written to " + options.report),
                      error.clStatus());
+  }
+  if (!options.gltf.empty()) {
+    writeGltf(options, rig, clip, skinner, run_options.times,
+              std::move(gltf_positions), std::move(gltf_normals));
   }
 
   if (!options.report.empty()) {
@@ -619,6 +799,15 @@ int main(int argc, char** argv) {
   app.add_flag("--overwrite", options.overwrite,
                "write into a non-empty --out folder (replacing the frame "
                "files of an earlier run) and replace an existing --report");
+  app.add_option("--params", options.params,
+                 "per-joint parameters (JSON, see README.md); default: "
+                 "INPUT.isk.json when it exists");
+  app.add_option("--save-params", options.save_params,
+                 "write the effective per-joint parameters (file + command "
+                 "line) to this JSON file");
+  app.add_option("--gltf", options.gltf,
+                 "animated glTF (.glb) of the frames beside LBS and DQS, "
+                 "playable in any glTF viewer");
   CLI::Option* const operator_option =
       app.add_option("--operator", options.default_operator,
                      "composition operator at every joint: union, blend or "
@@ -667,6 +856,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   for (const CLI::Option* option : tracking_options)
     options.tracking_given = options.tracking_given || option->count() > 0;
+  options.operator_given = operator_option->count() > 0;
   options.bulge_strength_given = bulge_option->count() > 0;
   options.blend_theta_given = theta_option->count() > 0;
   options.composition_given =

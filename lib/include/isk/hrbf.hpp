@@ -22,6 +22,10 @@
 
 namespace isk {
 
+namespace detail {
+struct HrbfAccess;  // the field cache's (de)serializer
+}  // namespace detail
+
 // Hermite data: points with unit outward normals.
 struct HermiteSamples {
   std::vector<Eigen::Vector3d> positions;
@@ -70,6 +74,7 @@ class Hrbf {
   double constant() const { return poly_b_; }                // b
 
  private:
+  friend struct detail::HrbfAccess;
   std::vector<Eigen::Vector3d> centres_;
   std::vector<Eigen::Vector3d> unit_centres_;
   std::vector<double> lambda_;

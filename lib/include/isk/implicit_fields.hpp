@@ -10,6 +10,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -33,7 +34,20 @@ struct ImplicitFieldsOptions {
   // Called after sampling, before fitting, with the samples of every bone
   // that has a part (joint order): add or remove points here.
   std::function<void(std::vector<BoneSamples>&)> edit_samples;
-  // Progress: `stage` is "partition", "sampling", "fitting", "baking",
+  // Per-joint Poisson-disk targets by joint name (replace
+  // sampling.target_samples for that joint's part; 1..100000).
+  std::map<std::string, int> joint_samples;
+  // On-disk cache of the built fields (isk/field_cache.hpp): when true, the
+  // samples, fits and baked grids are loaded from `cache_folder` (empty:
+  // operatorTableCacheFolder(), i.e. $ISK_CACHE_DIR, "off" disabling it)
+  // when a valid file for this rig and these options is there, else built
+  // and written there. A stale file (mesh, weights or skeleton changed) or a
+  // corrupt one is reported on stderr and rebuilt, never used. Ignored when
+  // `edit_samples` is set (a function cannot be part of the key).
+  bool cache = false;
+  std::string cache_folder;
+  // Progress: `stage` is "partition", "loading" (from the cache, which then
+  // replaces sampling, fitting and baking), "sampling", "fitting", "baking",
   // "operators" (tables baked once per process) or "iso values"; `fraction`
   // grows from 0 to 1 within a stage. Called from the calling thread.
   std::function<void(const char* stage, float fraction)> progress;
@@ -49,6 +63,16 @@ struct ImplicitFieldsTimes {
            iso_ms;
   }
 };
+
+// Where buildImplicitFields got the samples, fits and grids.
+enum class FieldCacheOrigin {
+  kOff,      // no cache asked for, no cache folder, or edit_samples set
+  kBuilt,    // no cache file yet: built and written
+  kLoaded,   // a valid cache file
+  kRebuilt,  // the file was stale or corrupt: reported, rebuilt, rewritten
+};
+// "off", "built", "loaded", "rebuilt".
+const char* fieldCacheOriginName(FieldCacheOrigin origin);
 
 // A character's implicit fields, every stage's result. "Per field" arrays
 // have one entry per joint with a part (partition.field_joints order).
@@ -66,6 +90,9 @@ struct ImplicitFields {
   // fields, regularised fits, named joints without a pair.
   std::vector<std::string> warnings;
   ImplicitFieldsTimes times;
+  FieldCacheOrigin cache_origin = FieldCacheOrigin::kOff;
+  std::string cache_file;  // the cache file read or written, if any
+  std::string cache_note;  // why a cache file was not used (kRebuilt)
 };
 
 // Validates `rig` and options (isk::Error kInvalidArgument, naming what is
