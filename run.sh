@@ -67,11 +67,24 @@ fuzz() {
   fi
   echo "== fuzz: $seconds s, corpus $dir/corpus, seeds from $data" >&2
   # Leaks inside Assimp (failed imports) are known and not ours: suppressed.
-  LSAN_OPTIONS=suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0 \
-    "$dir/fuzz/isk_import_fuzzer" -max_total_time="$seconds" -workers=1 \
+  export LSAN_OPTIONS=suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0
+  # One job at a time in a child process that is restarted after a finding,
+  # so that a crash or a hang inside Assimp does not end the run; every
+  # finding is then triaged (fuzz/triage.sh): the run fails for ours only.
+  "$dir/fuzz/isk_import_fuzzer" -fork=1 -ignore_crashes=1 \
+    -ignore_timeouts=1 -ignore_ooms=1 -max_total_time="$seconds" \
     -dict=fuzz/isk.dict -timeout=30 -rss_limit_mb=4096 \
     -artifact_prefix="$dir/findings/" -print_final_stats=1 "$@" \
-    "$dir/corpus" "$dir/seeds"
+    "$dir/corpus" "$dir/seeds" 2>"$dir/fuzz.log" || true
+  if ! grep -q "^INFO: exiting" "$dir/fuzz.log"; then
+    tail -n 20 "$dir/fuzz.log" >&2
+    echo "== fuzz: the fuzzer did not run to its end (see $dir/fuzz.log)" >&2
+    return 1
+  fi
+  grep -E '^#[0-9]+|^INFO: .*(files found|seed corpus)|^stat::' "$dir/fuzz.log" |
+    tail -n 4 >&2
+  echo "== fuzz: triage of this run's findings ($dir/findings)" >&2
+  fuzz/triage.sh "$dir/fuzz/isk_import_fuzzer" "$dir/findings"
 }
 
 case "${1:-}" in
