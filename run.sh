@@ -6,6 +6,8 @@
 #   ./run.sh bench  build, then run the benchmarks (arguments go to isk_bench)
 #   ./run.sh benchmarks  build, run the whole suite, write BENCHMARKS.md
 #                   (arguments go to bench/run_benchmarks.py)
+#   ./run.sh fuzz [SECONDS] [libFuzzer args]  build the fuzzer with Clang
+#                   into build-fuzz/ and fuzz the importer (default 60 s)
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -40,6 +42,51 @@ build() {
   cmake --build "$BUILD_DIR" -j "$JOBS" >&2
 }
 
+# libFuzzer over import -> rig -> skinning (fuzz/README.md). Seeds: the
+# shared assets up to 1 MB, read at run time; the corpus grows in
+# build-fuzz/corpus, crashes land in build-fuzz/findings.
+fuzz() {
+  local seconds=${1:-60}
+  shift || true
+  PACKAGES+=(clang libclang-rt-14-dev)
+  install_missing
+  local dir=${ISK_FUZZ_BUILD_DIR:-build-fuzz}
+  cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++ \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" \
+    -DISK_BUILD_FUZZERS=ON -DISK_BUILD_TESTS=OFF -DISK_BUILD_SAMPLES=OFF \
+    -DISK_BUILD_BENCHMARKS=OFF >&2
+  cmake --build "$dir" -j "$JOBS" --target isk_import_fuzzer >&2
+  local data=${ISK_DATA_DIR:-../shared/data}
+  mkdir -p "$dir/corpus" "$dir/seeds" "$dir/findings"
+  if [ -d "$data" ]; then
+    find "$data" -maxdepth 1 -type f -size -1024k ! -name '*.md' \
+      -exec cp -f {} "$dir/seeds/" \;
+  else
+    echo "== fuzz: no data folder at $data: starting from an empty corpus" >&2
+  fi
+  echo "== fuzz: $seconds s, corpus $dir/corpus, seeds from $data" >&2
+  # Leaks inside Assimp (failed imports) are known and not ours: suppressed.
+  export LSAN_OPTIONS=suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0
+  # One job at a time in a child process that is restarted after a finding,
+  # so that a crash or a hang inside Assimp does not end the run; every
+  # finding is then triaged (fuzz/triage.sh): the run fails for ours only.
+  "$dir/fuzz/isk_import_fuzzer" -fork=1 -ignore_crashes=1 \
+    -ignore_timeouts=1 -ignore_ooms=1 -max_total_time="$seconds" \
+    -dict=fuzz/isk.dict -timeout=30 -rss_limit_mb=4096 \
+    -artifact_prefix="$dir/findings/" -print_final_stats=1 "$@" \
+    "$dir/corpus" "$dir/seeds" 2>"$dir/fuzz.log" || true
+  if ! grep -q "^INFO: exiting" "$dir/fuzz.log"; then
+    tail -n 20 "$dir/fuzz.log" >&2
+    echo "== fuzz: the fuzzer did not run to its end (see $dir/fuzz.log)" >&2
+    return 1
+  fi
+  grep -E '^#[0-9]+|^INFO: .*(files found|seed corpus)|^stat::' "$dir/fuzz.log" |
+    tail -n 4 >&2
+  echo "== fuzz: triage of this run's findings ($dir/findings)" >&2
+  fuzz/triage.sh "$dir/fuzz/isk_import_fuzzer" "$dir/findings"
+}
+
 case "${1:-}" in
   demo)
     build
@@ -63,8 +110,12 @@ case "${1:-}" in
     shift
     python3 bench/run_benchmarks.py --bench "$BUILD_DIR/bench/isk_bench" "$@"
     ;;
+  fuzz)
+    shift
+    fuzz "$@"
+    ;;
   *)
-    echo "usage: $0 demo|test|build|bench|benchmarks [args]" >&2
+    echo "usage: $0 demo|test|build|bench|benchmarks|fuzz [args]" >&2
     exit 2
     ;;
 esac

@@ -321,9 +321,11 @@ void ClFieldEvaluation::uploadBuffer(const FieldGridSet& fields) {
   for (int i = 0; i < field_count_; ++i)
     std::copy(fields.grids[i].nodes.begin(), fields.grids[i].nodes.end(),
               nodes.begin() + per_field * i);
-  nodes_ =
-      cl::Buffer(context_->context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                 nodes.size() * sizeof(float), nodes.data());
+  nodes_ = context_->createBuffer(
+      CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, nodes.size() * sizeof(float),
+      nodes.data(),
+      "ClFieldEvaluation: grids of " + std::to_string(field_count_) +
+          " fields at " + std::to_string(resolution_) + "^3");
   field_bytes_ = nodes.size() * sizeof(float);
 }
 
@@ -486,15 +488,21 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
 }
 
 void ClFieldEvaluation::ensureOutputs(int point_count, bool per_field) {
-  const cl::Context& ctx = context_->context();
   const size_t composed = static_cast<size_t>(point_count) * kFloat4;
   if (composed > composed_bytes_) {
-    composed_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, composed);
+    composed_ =
+        context_->createBuffer(CL_MEM_READ_WRITE, composed, nullptr,
+                               "ClFieldEvaluation: composed values of " +
+                                   std::to_string(point_count) + " points");
     composed_bytes_ = composed;
   }
   const size_t fields = composed * field_count_;
   if (per_field && fields > per_field_bytes_) {
-    per_field_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, fields);
+    per_field_ =
+        context_->createBuffer(CL_MEM_READ_WRITE, fields, nullptr,
+                               "ClFieldEvaluation: per-field values of " +
+                                   std::to_string(point_count) + " points x " +
+                                   std::to_string(field_count_) + " fields");
     per_field_bytes_ = fields;
   }
 }
@@ -553,7 +561,9 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
   const size_t bytes = static_cast<size_t>(points.size()) * sizeof(float);
   try {
     if (bytes > points_bytes_) {
-      points_ = cl::Buffer(context_->context(), CL_MEM_READ_ONLY, bytes);
+      points_ = context_->createBuffer(
+          CL_MEM_READ_ONLY, bytes, nullptr,
+          "ClFieldEvaluation: " + std::to_string(count) + " points");
       points_bytes_ = bytes;
     }
     if (bytes > 0)

@@ -154,6 +154,7 @@ std::shared_ptr<ClContext> ClContext::create(const std::string& selection_in) {
   }
   result->info_ = chosen->info;
   result->profiling_ = true;
+  result->initInfo();
   return result;
 }
 
@@ -182,10 +183,43 @@ std::shared_ptr<ClContext> ClContext::wrap(cl_context context,
     result->info_ = describeDevice(platform, result->device_, -1);
     result->profiling_ = (result->queue_.getInfo<CL_QUEUE_PROPERTIES>() &
                           CL_QUEUE_PROFILING_ENABLE) != 0;
+    result->initInfo();
   } catch (const cl::Error& e) {
     throwClError(e, "ClContext::wrap: querying the application's objects");
   }
   return result;
+}
+
+void ClContext::initInfo() {
+  try {
+    max_allocation_ =
+        static_cast<size_t>(device_.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>());
+  } catch (const cl::Error& e) {
+    throwClError(e, "clGetDeviceInfo(CL_DEVICE_MAX_MEM_ALLOC_SIZE) on " +
+                        info_.describe());
+  }
+}
+
+cl::Buffer ClContext::createBuffer(cl_mem_flags flags, size_t bytes, void* host,
+                                   const std::string& what) const {
+  bytes = std::max<size_t>(bytes, 1);
+  if (bytes > max_allocation_) {
+    throw Error(ErrorCode::kOpenCl,
+                what + ": a buffer of " + std::to_string(bytes) +
+                    " bytes exceeds CL_DEVICE_MAX_MEM_ALLOC_SIZE (" +
+                    std::to_string(max_allocation_) + " bytes) of " +
+                    info_.describe(),
+                CL_INVALID_BUFFER_SIZE);
+  }
+  try {
+    return cl::Buffer(context_, flags, bytes, host);
+  } catch (const cl::Error& e) {
+    throw Error(ErrorCode::kOpenCl,
+                what + ": clCreateBuffer of " + std::to_string(bytes) +
+                    " bytes failed with " + clStatusName(e.err()) + " on " +
+                    info_.describe(),
+                e.err());
+  }
 }
 
 std::string ClContext::buildOptions(const std::string& extra_options) const {

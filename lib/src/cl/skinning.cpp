@@ -15,12 +15,13 @@ size_t roundUp(size_t n, size_t multiple) {
 }
 
 template <typename T>
-cl::Buffer uploadReadOnly(const cl::Context& context,
-                          const std::vector<T>& data) {
+cl::Buffer uploadReadOnly(const ClContext& context, const std::vector<T>& data,
+                          const char* what) {
   // A zero-sized buffer is invalid in OpenCL: keep one element at least.
   std::vector<T> padded = data.empty() ? std::vector<T>(1) : data;
-  return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                    padded.size() * sizeof(T), padded.data());
+  return context.createBuffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                              padded.size() * sizeof(T), padded.data(),
+                              std::string("ClSkinning ") + what);
 }
 
 }  // namespace
@@ -37,7 +38,6 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
       .throwIfFailed("ClSkinning weights");
   const VertexTriangleAdjacency adjacency =
       VertexTriangleAdjacency::build(mesh.triangles, vertex_count_);
-  const cl::Context& ctx = context_->context();
   try {
     cl::Program skinning = context_->program("skinning");
     cl::Program normals = context_->program("normals");
@@ -47,24 +47,37 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
     const float* p = mesh.positions.data();
     const float* n = mesh.normals.data();
     const size_t floats = 3 * static_cast<size_t>(vertex_count_);
-    rest_positions_ = uploadReadOnly(ctx, std::vector<float>(p, p + floats));
-    rest_normals_ = uploadReadOnly(ctx, std::vector<float>(n, n + floats));
-    influence_offsets_ = uploadReadOnly(ctx, weights.offsets);
-    influence_joints_ = uploadReadOnly(ctx, weights.joints);
-    influence_weights_ = uploadReadOnly(ctx, weights.weights);
+    const ClContext& c = *context_;
+    rest_positions_ =
+        uploadReadOnly(c, std::vector<float>(p, p + floats), "rest positions");
+    rest_normals_ =
+        uploadReadOnly(c, std::vector<float>(n, n + floats), "rest normals");
+    influence_offsets_ =
+        uploadReadOnly(c, weights.offsets, "influence offsets");
+    influence_joints_ = uploadReadOnly(c, weights.joints, "influence joints");
+    influence_weights_ =
+        uploadReadOnly(c, weights.weights, "influence weights");
     const int32_t* t = mesh.triangles.data();
     triangles_ = uploadReadOnly(
-        ctx, std::vector<int32_t>(
-                 t, t + 3 * static_cast<size_t>(mesh.triangleCount())));
-    adjacency_offsets_ = uploadReadOnly(ctx, adjacency.offsets);
-    adjacency_triangles_ = uploadReadOnly(ctx, adjacency.triangles);
+        c,
+        std::vector<int32_t>(t,
+                             t + 3 * static_cast<size_t>(mesh.triangleCount())),
+        "triangles");
+    adjacency_offsets_ =
+        uploadReadOnly(c, adjacency.offsets, "adjacency offsets");
+    adjacency_triangles_ =
+        uploadReadOnly(c, adjacency.triangles, "adjacency triangles");
     // Large enough for either layout (LBS 12 floats per joint, DQS 8).
-    joint_transforms_ = cl::Buffer(
-        ctx, CL_MEM_READ_ONLY, 12 * sizeof(float) * std::max(joint_count, 1));
-    skinned_normals_ =
-        cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
-    out_positions_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
-    out_normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats * sizeof(float));
+    joint_transforms_ = c.createBuffer(
+        CL_MEM_READ_ONLY, 12 * sizeof(float) * std::max(joint_count, 1),
+        nullptr, "ClSkinning joint transforms");
+    const size_t bytes = floats * sizeof(float);
+    skinned_normals_ = c.createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
+                                      "ClSkinning skinned normals");
+    out_positions_ = c.createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
+                                    "ClSkinning positions");
+    out_normals_ =
+        c.createBuffer(CL_MEM_READ_WRITE, bytes, nullptr, "ClSkinning normals");
   } catch (const cl::Error& e) {
     throwClError(
         e, "ClSkinning: uploading the mesh to " + context_->info().describe());

@@ -16,18 +16,19 @@ size_t roundUp(size_t n, size_t multiple) {
 }
 
 template <typename T>
-cl::Buffer uploadReadOnly(const cl::Context& context, const T* data,
-                          size_t count, size_t* bytes) {
+cl::Buffer uploadReadOnly(const ClContext& context, const T* data, size_t count,
+                          size_t* bytes) {
   // A zero-sized buffer is invalid in OpenCL: keep one element at least.
   std::vector<T> padded(data, data + count);
   if (padded.empty()) padded.resize(1);
   *bytes += padded.size() * sizeof(T);
-  return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                    padded.size() * sizeof(T), padded.data());
+  return context.createBuffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                              padded.size() * sizeof(T), padded.data(),
+                              "ClSurfaceTracking: the tracking mesh");
 }
 
 template <typename T>
-cl::Buffer uploadReadOnly(const cl::Context& context, const std::vector<T>& v,
+cl::Buffer uploadReadOnly(const ClContext& context, const std::vector<T>& v,
                           size_t* bytes) {
   return uploadReadOnly(context, v.data(), v.size(), bytes);
 }
@@ -49,7 +50,6 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     throw Error(ErrorCode::kInvalidArgument,
                 "ClSurfaceTracking: the tracking mesh is inconsistent (built "
                 "by TrackingMesh::build?)");
-  const cl::Context& ctx = context_->context();
   const size_t n = static_cast<size_t>(std::max(vertex_count_, 1));
   try {
     cl::Program tracking = context_->program("tracking", fields.buildOptions());
@@ -63,19 +63,22 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     normals_kernel_ =
         cl::Kernel(context_->program("normals"), "vertex_normals");
 
-    iso_values_ = uploadReadOnly(ctx, mesh.iso_values, &bytes_);
-    representative_ = uploadReadOnly(ctx, mesh.rings.representative, &bytes_);
+    iso_values_ = uploadReadOnly(*context_, mesh.iso_values, &bytes_);
+    representative_ =
+        uploadReadOnly(*context_, mesh.rings.representative, &bytes_);
     std::vector<uint8_t> rules(mesh.relaxation.rules.size());
     for (size_t v = 0; v < rules.size(); ++v)
       rules[v] = static_cast<uint8_t>(mesh.relaxation.rules[v]);
-    rules_ = uploadReadOnly(ctx, rules, &bytes_);
-    home_fields_ = uploadReadOnly(ctx, mesh.home_field, &bytes_);
-    home_margins_ = uploadReadOnly(ctx, mesh.home_margin, &bytes_);
+    rules_ = uploadReadOnly(*context_, rules, &bytes_);
+    home_fields_ = uploadReadOnly(*context_, mesh.home_field, &bytes_);
+    home_margins_ = uploadReadOnly(*context_, mesh.home_margin, &bytes_);
     const size_t fields = static_cast<size_t>(mesh.field_count);
     auto int_buffer = [&](size_t count) {
       bytes_ += std::max<size_t>(count, 1) * sizeof(int);
-      return cl::Buffer(ctx, CL_MEM_READ_ONLY,
-                        std::max<size_t>(count, 1) * sizeof(int));
+      return context_->createBuffer(
+          CL_MEM_READ_ONLY, std::max<size_t>(count, 1) * sizeof(int), nullptr,
+          "ClSurfaceTracking: field neighbourhoods of " +
+              std::to_string(fields) + " fields");
     };
     partners_ = int_buffer(fields * TrackingMesh::kMaxPartners);
     // Worst cases: every field in every neighbourhood, every pair too.
@@ -84,35 +87,41 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_pair_offsets_ = int_buffer(fields + 1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
     if (options.march_order) {
-      march_order_ = uploadReadOnly(ctx, mesh.march_order, &bytes_);
+      march_order_ = uploadReadOnly(*context_, mesh.march_order, &bytes_);
     } else {  // the same vertices by index
       std::vector<int> by_index(mesh.march_order);
       std::sort(by_index.begin(), by_index.end());
-      march_order_ = uploadReadOnly(ctx, by_index, &bytes_);
+      march_order_ = uploadReadOnly(*context_, by_index, &bytes_);
     }
-    ring_offsets_ = uploadReadOnly(ctx, mesh.rings.offsets, &bytes_);
-    ring_neighbours_ = uploadReadOnly(ctx, mesh.rings.neighbours, &bytes_);
-    ring_weights_ = uploadReadOnly(ctx, mesh.relaxation.weights, &bytes_);
-    ring_lengths_ = uploadReadOnly(ctx, mesh.ring_lengths, &bytes_);
+    ring_offsets_ = uploadReadOnly(*context_, mesh.rings.offsets, &bytes_);
+    ring_neighbours_ =
+        uploadReadOnly(*context_, mesh.rings.neighbours, &bytes_);
+    ring_weights_ = uploadReadOnly(*context_, mesh.relaxation.weights, &bytes_);
+    ring_lengths_ = uploadReadOnly(*context_, mesh.ring_lengths, &bytes_);
     triangles_ =
-        uploadReadOnly(ctx, mesh.triangles.data(),
+        uploadReadOnly(*context_, mesh.triangles.data(),
                        static_cast<size_t>(mesh.triangles.size()), &bytes_);
     normal_offsets_ =
-        uploadReadOnly(ctx, mesh.normal_adjacency.offsets, &bytes_);
+        uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
     normal_triangles_ =
-        uploadReadOnly(ctx, mesh.normal_adjacency.triangles, &bytes_);
+        uploadReadOnly(*context_, mesh.normal_adjacency.triangles, &bytes_);
     const size_t floats3 = 3 * n * sizeof(float);
-    for (auto& b : positions_) b = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats3);
-    normals_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, floats3);
-    states_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n);
-    prev_gradients_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n * 4 * sizeof(float));
-    relax_frames_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, n * 4 * sizeof(float));
-    for (auto& b : beta_)
-      b = cl::Buffer(ctx, CL_MEM_READ_WRITE, 2 * n * sizeof(float));
+    const std::string per_vertex = "ClSurfaceTracking: per-vertex state of " +
+                                   std::to_string(n) + " vertices";
+    auto rw = [&](size_t bytes) {
+      return context_->createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
+                                    per_vertex);
+    };
+    for (auto& b : positions_) b = rw(floats3);
+    normals_ = rw(floats3);
+    states_ = rw(n);
+    prev_gradients_ = rw(n * 4 * sizeof(float));
+    relax_frames_ = rw(n * 4 * sizeof(float));
+    for (auto& b : beta_) b = rw(2 * n * sizeof(float));
     std::vector<uint8_t> kinds(mesh.rings.kinds.size());
     for (size_t v = 0; v < kinds.size(); ++v)
       kinds[v] = static_cast<uint8_t>(mesh.rings.kinds[v]);
-    kinds_ = uploadReadOnly(ctx, kinds, &bytes_);
+    kinds_ = uploadReadOnly(*context_, kinds, &bytes_);
     bytes_ +=
         3 * floats3 + n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
   } catch (const cl::Error& e) {

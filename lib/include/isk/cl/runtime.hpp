@@ -66,6 +66,17 @@ class ClContext {
   const ClDeviceInfo& info() const { return info_; }
   // True when the queue records profiling info (events give kernel times).
   bool profilingEnabled() const { return profiling_; }
+  // CL_DEVICE_MAX_MEM_ALLOC_SIZE: the largest buffer the device takes.
+  size_t maxAllocationBytes() const { return max_allocation_; }
+
+  // A buffer of `bytes` (0 is raised to 1: OpenCL has no empty buffers) in
+  // this context, `host` copied when flags ask for it. Throws
+  // isk::Error(kOpenCl, CL_INVALID_BUFFER_SIZE) naming `what`, the size and
+  // the device's limit when `bytes` exceeds maxAllocationBytes(), and
+  // kOpenCl naming clCreateBuffer, `what` and the size when the call fails
+  // (CL_MEM_OBJECT_ALLOCATION_FAILURE, CL_OUT_OF_HOST_MEMORY...).
+  cl::Buffer createBuffer(cl_mem_flags flags, size_t bytes, void* host,
+                          const std::string& what) const;
 
   // The built program of embedded kernel file `kernel_file` (name without
   // .cl), built with buildOptions(extra_options); cached. Throws
@@ -87,6 +98,7 @@ class ClContext {
   cl::CommandQueue queue_;
   ClDeviceInfo info_;
   bool profiling_ = false;
+  size_t max_allocation_ = 0;
   mutable std::mutex mutex_;
   std::map<std::string, cl::Program> programs_;
 };
