@@ -6,6 +6,8 @@
 #   ./run.sh bench  build, then run the benchmarks (arguments go to isk_bench)
 #   ./run.sh benchmarks  build, run the whole suite, write BENCHMARKS.md
 #                   (arguments go to bench/run_benchmarks.py)
+#   ./run.sh sanitize  AddressSanitizer + UndefinedBehaviorSanitizer build in
+#                   build-asan/, then the whole test suite through CTest
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -40,6 +42,29 @@ build() {
   cmake --build "$BUILD_DIR" -j "$JOBS" >&2
 }
 
+# Sanitizer runs: suppressions name third-party code only
+# (PoCL, its LLVM, the OpenCL loader, Assimp, glibc's loader), see
+# tests/sanitizers/.
+SANITIZERS=$PWD/tests/sanitizers
+
+sanitize() {
+  install_missing
+  export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$PWD/.pocl-cache}
+  mkdir -p "$POCL_CACHE_DIR"
+  local dir=${ISK_SANITIZE_BUILD_DIR:-build-asan}
+  # -O1 -g1: quicker to build than Release, fast enough to run, with line
+  # numbers in reports. _GLIBCXX_ASSERTIONS: bounds checks in the standard
+  # containers; no NDEBUG, so Eigen's index asserts are on too.
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -D_GLIBCXX_ASSERTIONS" \
+    -DISK_SANITIZE=address,undefined >&2
+  cmake --build "$dir" -j "$JOBS" >&2
+  export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:halt_on_error=1}
+  export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$SANITIZERS/lsan.supp:print_suppressions=0}
+  export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+  (cd "$dir" && ctest --output-on-failure -j "$JOBS")
+}
+
 case "${1:-}" in
   demo)
     build
@@ -63,8 +88,11 @@ case "${1:-}" in
     shift
     python3 bench/run_benchmarks.py --bench "$BUILD_DIR/bench/isk_bench" "$@"
     ;;
+  sanitize)
+    sanitize
+    ;;
   *)
-    echo "usage: $0 demo|test|build|bench|benchmarks [args]" >&2
+    echo "usage: $0 demo|test|build|bench|benchmarks|sanitize [args]" >&2
     exit 2
     ;;
 esac
