@@ -114,6 +114,15 @@ TEST(Soak, ImplicitSkinningFramesKeepMemoryFlatAndRepeatBitForBit) {
   EXPECT_EQ(drifted, 0) << "frames that differ from the same frame of the "
                            "first loop; the first: frame "
                         << first_drift;
+#if defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer keeps freed memory in its quarantine (256 MiB by
+  // default), so VmRSS grows without a leak; LeakSanitizer checks leaks at
+  // exit instead. The native build (run.sh test) asserts the bounds below.
+  std::printf(
+      "[ soak ] AddressSanitizer build: memory bounds left to "
+      "LeakSanitizer\n");
+  return;
+#endif
   EXPECT_LT(rss_max - rss_warm, 2048)
       << "VmRSS grew after warm-up (KiB): " << rss_warm << " -> " << rss_max;
   EXPECT_LT(hwm_end - hwm_warm, 2048)
