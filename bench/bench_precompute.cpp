@@ -30,20 +30,32 @@
 // speedup their ratio; read_ms, partition_ms and iso_ms split the cached
 // load (the rest: composition and freeing the previous fields).
 //
-//   isk_bench --benchmark_filter='^OperatorTable/|^ProgramBuild/|cached-load'
+// Import/<asset>/<in-process|isolated>: isk::importRig of a shared asset
+// (in the OS page cache) in the calling process, and in a child process
+// with a time limit (ImportOptions::time_limit_seconds: fork, import,
+// the rig sent back over a pipe). The isolated run's counters hold one
+// in-process import measured in the same process (in_process_ms) and
+// overhead_ms, the difference of the two medians of 5.
+//
+//   isk_bench
+//   --benchmark_filter='^OperatorTable/|^ProgramBuild/|cached-load|^Import/'
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <random>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "bench_support.hpp"
+#include "data_folder.hpp"
 #include "isk/composition_operator.hpp"
 #include "isk/field_cache.hpp"
 #include "isk/implicit_fields.hpp"
+#include "isk/import.hpp"
 
 namespace isk::bench {
 namespace {
@@ -200,7 +212,49 @@ void buildProgram(benchmark::State& state, const std::string& kernel,
 
 }  // namespace
 
+double medianImportMs(const std::string& path, const ImportOptions& options) {
+  std::vector<double> ms;
+  for (int i = 0; i < 5; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(importRig(path, options).mesh.positions.data());
+    ms.push_back(std::chrono::duration<double, std::milli>(
+                     std::chrono::steady_clock::now() - start)
+                     .count());
+  }
+  std::sort(ms.begin(), ms.end());
+  return ms[2];
+}
+
+void importAsset(benchmark::State& state, Model model, bool isolated) {
+  const std::string path = samples::dataFile(model.file);
+  ImportOptions options;
+  if (isolated) options.time_limit_seconds = 600;
+  int vertices = 0;
+  for (auto _ : state) {
+    vertices = importRig(path, options).mesh.vertexCount();
+  }
+  state.counters["vertices"] = vertices;
+  if (isolated) {
+    const double in_process = medianImportMs(path, {});
+    state.counters["in_process_ms"] = in_process;
+    state.counters["overhead_ms"] = medianImportMs(path, options) - in_process;
+  }
+}
+
 void registerPrecomputeBenchmarks() {
+  for (const Model& model : models()) {
+    if (model.file.empty() || model.subdivision_levels > 0 ||
+        !available(model)) {
+      continue;
+    }
+    for (const bool isolated : {false, true}) {
+      registerGuarded(
+          "Import/" + model.name + (isolated ? "/isolated" : "/in-process"),
+          importAsset, model, isolated)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+    }
+  }
   for (const CompositionOperator op :
        {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
     const std::string prefix =

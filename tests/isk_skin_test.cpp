@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -442,6 +443,101 @@ TEST(IskSkinTest, OutIntoTheInputsFolderNeverTouchesTheInput) {
     EXPECT_EQ(readFile(framed), gltf) << format;
   }
   EXPECT_EQ(readFile(input), gltf);
+}
+
+// A file that makes Assimp hang (a COLLADA index list holding a letter)
+// ends at --import-timeout with an error naming it; nothing is written. The
+// same file with a memory limit instead, and the flags' defaults, also end
+// in an error (no skeleton) when the letter is a number.
+TEST(IskSkinTest, AHangingImportStopsAtTheImportTimeout) {
+  ScopedTempDir dir;
+  const std::string input =
+      test::writeBytes(dir / "hangs.dae", test::colladaTriangle("0 x 2"));
+  const std::vector<std::string> args = {
+      input,      "--import-timeout", "1", "--out", dir / "out",
+      "--report", dir / "report.json"};
+  const auto start = std::chrono::steady_clock::now();
+  const RunOutput run = runIskSkin(args);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+          .count();
+  EXPECT_EQ(run.exit_code, 1) << describe(args, run);
+  EXPECT_NE(run.output.find("hangs.dae: the import did not finish within its "
+                            "time limit of 1 s"),
+            std::string::npos)
+      << describe(args, run);
+  EXPECT_LT(seconds, 30.0);
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  EXPECT_FALSE(fs::exists(dir / "report.json"));
+  EXPECT_EQ(readFile(input), test::colladaTriangle("0 x 2"));
+
+  const std::string numbers =
+      test::writeBytes(dir / "numbers.dae", test::colladaTriangle("0 1 2"));
+  for (const std::vector<std::string>& flags :
+       std::vector<std::vector<std::string>>{
+           {}, {"--import-timeout", "0"}, {"--import-memory", "512"}}) {
+    std::vector<std::string> with = {numbers};
+    with.insert(with.end(), flags.begin(), flags.end());
+    const RunOutput done = runIskSkin(with);
+    EXPECT_EQ(done.exit_code, 1) << describe(with, done);
+    EXPECT_NE(done.output.find("numbers.dae: no skeleton"), std::string::npos)
+        << describe(with, done);
+  }
+  for (const std::string& bad : {"-1", "nan", "x"}) {
+    const std::vector<std::string> wrong = {numbers, "--import-timeout", bad};
+    const RunOutput refused = runIskSkin(wrong);
+    EXPECT_NE(refused.exit_code, 0) << describe(wrong, refused);
+    EXPECT_NE(refused.output.find("--import-timeout"), std::string::npos)
+        << describe(wrong, refused);
+  }
+}
+
+// --import-memory stops an import that needs more, with an error naming the
+// file and the limit.
+TEST(IskSkinTest, ImportMemoryLimitStopsALargeImport) {
+  ScopedTempDir dir;
+  CylinderRigOptions options;
+  options.rings = 200;
+  options.segments = 64;
+  const std::string input = test::writeBytes(
+      dir / "rig.gltf", test::rigGltf(makeCylinderRig(options)));
+  const std::vector<std::string> args = {input, "--import-memory", "1",
+                                         "--frames", "2"};
+  const RunOutput run = runIskSkin(args);
+  EXPECT_EQ(run.exit_code, 1) << describe(args, run);
+  EXPECT_NE(run.output.find("rig.gltf: "), std::string::npos)
+      << describe(args, run);
+#if !defined(__SANITIZE_ADDRESS__)
+  EXPECT_NE(run.output.find("more memory than its limit of 1 MiB"),
+            std::string::npos)
+      << describe(args, run);
+#endif
+  const std::vector<std::string> enough = {input, "--import-memory", "1024",
+                                           "--frames", "2"};
+  const RunOutput fits = runIskSkin(enough);
+  EXPECT_EQ(fits.exit_code, 0) << describe(enough, fits);
+
+  if (!test::haveAssets()) {
+    GTEST_SKIP() << test::missingAssetsMessage("--import-memory on an asset");
+  }
+  const std::string asset = samples::dataFile("human-addon-animations.glb");
+  for (const char* mib : {"1", "1024"}) {
+    const std::vector<std::string> on_asset = {asset, "--import-memory", mib,
+                                               "--frames", "2"};
+    const RunOutput result = runIskSkin(on_asset);
+    if (std::string(mib) == "1") {
+      EXPECT_EQ(result.exit_code, 1) << describe(on_asset, result);
+#if !defined(__SANITIZE_ADDRESS__)
+      EXPECT_NE(
+          result.output.find("human-addon-animations.glb: the import "
+                             "needed more memory than its limit of 1 MiB"),
+          std::string::npos)
+          << describe(on_asset, result);
+#endif
+    } else {
+      EXPECT_EQ(result.exit_code, 0) << describe(on_asset, result);
+    }
+  }
 }
 
 // The report is never replaced without --overwrite, never lands on a frame

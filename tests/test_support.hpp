@@ -89,6 +89,10 @@ std::string describeRun(const std::string& name,
 // The whole file (binary); empty when it cannot be read.
 std::string readFile(const std::string& path);
 
+// A COLLADA file of one triangle without a skeleton; `indices` is its <p>
+// list ("0 1 2"). Assimp 5.2 hangs on a list holding a non-number ("0 x 2").
+std::string colladaTriangle(const std::string& indices);
+
 // Width and height from a PNG's signature and IHDR chunk; unset (0) when
 // the bytes are not a PNG.
 struct PngHeader {

@@ -20,6 +20,8 @@ const char* errorCodeName(ErrorCode code) {
       return "opencl";
     case ErrorCode::kInternal:
       return "internal";
+    case ErrorCode::kLimitExceeded:
+      return "limit_exceeded";
   }
   return "unknown";
 }

@@ -19,7 +19,9 @@
 #include <utility>
 #include <vector>
 
+#include "child_process.hpp"
 #include "isk/error.hpp"
+#include "rig_serialization.hpp"
 
 namespace isk {
 namespace {
@@ -680,7 +682,22 @@ Rig Loader::load() {
 }  // namespace
 
 Rig importRig(const std::string& path, const ImportOptions& options) {
-  return Loader(path, options).load();
+  if (!options.isolate && options.time_limit_seconds == 0 &&
+      options.memory_limit_bytes == 0) {
+    return Loader(path, options).load();
+  }
+  detail::ChildLimits limits;
+  limits.time_limit_seconds = options.time_limit_seconds;
+  limits.memory_limit_bytes = options.memory_limit_bytes;
+  const std::string bytes = detail::runInChildProcess(
+      path, limits,
+      [&](const detail::ProgressSink& sink) {
+        ImportOptions in_child = options;
+        in_child.progress = sink;
+        return detail::serializeRig(Loader(path, in_child).load());
+      },
+      options.progress);
+  return detail::deserializeRig(bytes);
 }
 
 }  // namespace isk

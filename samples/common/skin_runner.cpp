@@ -104,14 +104,13 @@ std::string describeFailedFrame(int frame, int frames, const std::string& why,
 
 }  // namespace
 
-Rig loadRig(const std::string& input) {
+Rig loadRig(const std::string& input, ImportOptions options) {
   const std::string prefix = kBuiltinPrefix;
   if (input.compare(0, prefix.size(), prefix) == 0) {
     return makeBuiltinRig(input.substr(prefix.size()));
   }
   // Progress on stderr: one update per stage and per tenth, so a large file
   // shows it is alive without flooding a log.
-  ImportOptions options;
   std::string last_stage;
   int last_tenth = -1;
   bool printed = false;

@@ -15,6 +15,7 @@
 #include "isk/cpu_skinning.hpp"
 #include "isk/export.hpp"
 #include "isk/implicit_skinner.hpp"
+#include "isk/import.hpp"
 #include "isk/rig.hpp"
 #include "isk/skinning.hpp"
 #include "isk/types.hpp"
@@ -23,8 +24,18 @@
 namespace isk::samples {
 
 // "builtin:NAME" builds a procedural rig, anything else is imported from a
-// file. Throws isk::Error.
-Rig loadRig(const std::string& input);
+// file with `options` (their progress is replaced by a progress line on
+// stderr). Throws isk::Error.
+Rig loadRig(const std::string& input, ImportOptions options = {});
+
+// How the samples import files by default: in a child process stopped after
+// two minutes, since some corrupt files make Assimp hang (isk/import.hpp).
+constexpr double kImportTimeLimitSeconds = 120;
+inline ImportOptions guardedImportOptions() {
+  ImportOptions options;
+  options.time_limit_seconds = kImportTimeLimitSeconds;
+  return options;
+}
 
 // The clip named `spec`, else the clip whose index `spec` spells; an empty
 // spec means clip 0. A rig without clips gets a 90-degree bend of every joint

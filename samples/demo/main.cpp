@@ -660,7 +660,8 @@ class Demo {
 void Demo::runRig(const RigJob& job) {
   const std::string& rig_name = job.name;
   const std::string prefix = "isk-demo: " + rig_name + ": ";
-  const isk::Rig rig = isk::samples::loadRig(job.source);
+  const isk::Rig rig =
+      isk::samples::loadRig(job.source, isk::samples::guardedImportOptions());
   for (const std::string& warning : rig.warnings) {
     std::cerr << prefix << "warning: " << warning << "\n";
   }

@@ -77,7 +77,7 @@ isk::Rig loadInput(const std::string& input) {
     throw isk::Error(isk::ErrorCode::kIo,
                      "'" + input + "' is a folder, not a rig file");
   }
-  return isk::samples::loadRig(input);
+  return isk::samples::loadRig(input, isk::samples::guardedImportOptions());
 }
 
 // "bind", or a time in seconds from the start of the clip.

@@ -50,6 +50,12 @@ struct Options {
   std::string format = "obj";
   bool overwrite = false;
 
+  // The import runs in a child process that is stopped after this many
+  // seconds (0: in this process, no limit) or past this much memory (MiB,
+  // 0: none): some corrupt files make Assimp hang.
+  double import_timeout = isk::samples::kImportTimeLimitSeconds;
+  double import_memory_mib = 0;
+
   // Composition operators (the implicit fields are built only when one of
   // these options is given: `composition_given`).
   std::string default_operator = "union";
@@ -565,7 +571,11 @@ int run(const Options& options) {
       options.format == "ply" ? isk::MeshFormat::kPly : isk::MeshFormat::kObj;
 
   const auto load_start = std::chrono::steady_clock::now();
-  const isk::Rig rig = isk::samples::loadRig(options.input);
+  isk::ImportOptions import_options;
+  import_options.time_limit_seconds = options.import_timeout;
+  import_options.memory_limit_bytes =
+      static_cast<uint64_t>(options.import_memory_mib * kMiB);
+  const isk::Rig rig = isk::samples::loadRig(options.input, import_options);
   const double load_ms = millisecondsSince(load_start);
   for (const std::string& warning : rig.warnings) {
     std::cerr << "warning: " << warning << "\n";
@@ -766,6 +776,18 @@ std::string checkDevice(const std::string& value) {
 
 }  // namespace
 
+// CLI::Range lets NaN through.
+const CLI::Validator kFiniteNonNegative(
+    [](const std::string& text) -> std::string {
+      double value = 0;
+      if (!CLI::detail::lexical_cast(text, value) || !std::isfinite(value) ||
+          value < 0 || value > 1e9) {
+        return "expected a number of at least 0, got '" + text + "'";
+      }
+      return {};
+    },
+    "NUMBER >= 0");
+
 int main(int argc, char** argv) {
   Options options;
   CLI::App app{
@@ -793,6 +815,17 @@ int main(int argc, char** argv) {
   app.add_option("--out", options.out_dir,
                  "folder for frame_0000.obj, frame_0001.obj, ...");
   app.add_option("--report", options.report, "JSON report file");
+  app.add_option("--import-timeout", options.import_timeout,
+                 "seconds the import may take before it is stopped with an "
+                 "error (it runs in a child process; 0: no limit, in this "
+                 "process)")
+      ->check(kFiniteNonNegative)
+      ->capture_default_str();
+  app.add_option("--import-memory", options.import_memory_mib,
+                 "MiB of memory the import may take before it is stopped with "
+                 "an error (0: no limit)")
+      ->check(kFiniteNonNegative)
+      ->capture_default_str();
   app.add_option("--format", options.format, "frame file format: obj or ply")
       ->check(CLI::IsMember({"obj", "ply"}))
       ->capture_default_str();

@@ -19,6 +19,7 @@ enum class ErrorCode {
   kNoDevice,         // no OpenCL platform/device matches the request
   kOpenCl,           // an OpenCL call failed (clStatus() holds the code)
   kInternal,         // a broken invariant inside the library
+  kLimitExceeded,    // a time or memory limit the caller set was reached
 };
 
 // Short stable name of a code ("invalid_argument", "opencl", ...).
