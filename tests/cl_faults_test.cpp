@@ -23,27 +23,6 @@ bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
 }
 
-// Sets an environment variable for one scope.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
-    setenv(name, value, 1);
-  }
-  ~ScopedEnv() {
-    if (had_) {
-      setenv(name_, old_.c_str(), 1);
-    } else {
-      unsetenv(name_);
-    }
-  }
-
- private:
-  const char* name_;
-  std::string old_;
-  bool had_ = false;
-};
-
 // The probe in a process whose ICD loader finds no vendor file: ocl-icd
 // reads OCL_ICD_VENDORS instead of /etc/OpenCL/vendors, and an empty folder
 // leaves clGetPlatformIDs with CL_PLATFORM_NOT_FOUND_KHR.
@@ -89,7 +68,7 @@ TEST(ClFaults, NoMatchingDeviceNamesTheSelectionAndTheDevicesSeen) {
   ASSERT_FALSE(devices.empty());
   const std::string past_end = "opencl:" + std::to_string(devices.size());
   {
-    ScopedEnv env("ISK_DEVICE", past_end.c_str());
+    test::ScopedEnv env("ISK_DEVICE", past_end.c_str());
     try {
       ClContext::create("");
       FAIL() << "ISK_DEVICE=" << past_end << " was accepted";
@@ -103,7 +82,7 @@ TEST(ClFaults, NoMatchingDeviceNamesTheSelectionAndTheDevicesSeen) {
     }
   }
   {
-    ScopedEnv env("ISK_DEVICE", "fastest-gpu");
+    test::ScopedEnv env("ISK_DEVICE", "fastest-gpu");
     try {
       ClContext::create("");
       FAIL() << "ISK_DEVICE=fastest-gpu was accepted";

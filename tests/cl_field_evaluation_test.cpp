@@ -403,28 +403,6 @@ TEST(ClFieldEvaluation, InvalidInputThrowsWithMessage) {
                         "did not ask for per-field results");
 }
 
-// Sets an environment variable for one scope.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    if (value)
-      setenv(name, value, 1);
-    else
-      unsetenv(name);
-  }
-  ~ScopedEnv() {
-    if (old_)
-      setenv(name_, old_->c_str(), 1);
-    else
-      unsetenv(name_);
-  }
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
-
 TEST(ClFieldEvaluation, AutoPicksBufferOnCpuDevicesAndHonoursTheEnvironment) {
   const Rig& rig = rigOf("cylinder");
   const FieldGridSet& fields = fieldsOf("cylinder");
@@ -432,7 +410,7 @@ TEST(ClFieldEvaluation, AutoPicksBufferOnCpuDevicesAndHonoursTheEnvironment) {
   auto context = test::sharedContext();
   const bool images = context->device().getInfo<CL_DEVICE_IMAGE_SUPPORT>();
   {
-    ScopedEnv env("ISK_FIELD_STORAGE", nullptr);
+    test::ScopedEnv env("ISK_FIELD_STORAGE", nullptr);
     ClFieldEvaluation automatic(context, fields, joints);
     if (context->info().is_cpu && !context->info().is_gpu)
       EXPECT_EQ(automatic.storage(), FieldStorage::kBuffer)
@@ -449,7 +427,7 @@ TEST(ClFieldEvaluation, AutoPicksBufferOnCpuDevicesAndHonoursTheEnvironment) {
     EXPECT_GE(automatic.bytes(), fields.bytes());
   }
   {
-    ScopedEnv env("ISK_FIELD_STORAGE", "image");
+    test::ScopedEnv env("ISK_FIELD_STORAGE", "image");
     ClFieldEvaluation forced(context, fields, joints);
     EXPECT_EQ(forced.storage(),
               images ? FieldStorage::kImage : FieldStorage::kBuffer)
@@ -461,12 +439,12 @@ TEST(ClFieldEvaluation, AutoPicksBufferOnCpuDevicesAndHonoursTheEnvironment) {
     EXPECT_EQ(buffer.storage(), FieldStorage::kBuffer);
   }
   {
-    ScopedEnv env("ISK_FIELD_STORAGE", "buffer");
+    test::ScopedEnv env("ISK_FIELD_STORAGE", "buffer");
     EXPECT_EQ(ClFieldEvaluation(context, fields, joints).storage(),
               FieldStorage::kBuffer);
   }
   {
-    ScopedEnv env("ISK_FIELD_STORAGE", "texture");
+    test::ScopedEnv env("ISK_FIELD_STORAGE", "texture");
     expectInvalidArgument(
         [&] { (void)ClFieldEvaluation(context, fields, joints); },
         "ISK_FIELD_STORAGE='texture'");

@@ -15,27 +15,6 @@
 namespace isk {
 namespace {
 
-// Sets an environment variable for one scope.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
-    setenv(name, value, 1);
-  }
-  ~ScopedEnv() {
-    if (had_) {
-      setenv(name_, old_.c_str(), 1);
-    } else {
-      unsetenv(name_);
-    }
-  }
-
- private:
-  const char* name_;
-  std::string old_;
-  bool had_ = false;
-};
-
 TEST(Runtime, ListsDevicesAndCreatesTheDefaultContext) {
   const auto devices = listClDevices();
   ASSERT_FALSE(devices.empty())
@@ -87,12 +66,12 @@ TEST(Runtime, BadSelectionsGiveTypedErrors) {
 
 TEST(Runtime, EnvironmentVariableOverridesAuto) {
   {
-    ScopedEnv env("ISK_DEVICE", "opencl:999");
+    test::ScopedEnv env("ISK_DEVICE", "opencl:999");
     EXPECT_THROW(ClContext::create(""), Error);
     // An explicit argument wins over the environment.
     EXPECT_NO_THROW(ClContext::create("opencl:0"));
   }
-  ScopedEnv env("ISK_DEVICE", "opencl:0");
+  test::ScopedEnv env("ISK_DEVICE", "opencl:0");
   EXPECT_EQ(ClContext::create("")->info().name, listClDevices()[0].name);
 }
 

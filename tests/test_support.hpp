@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,20 @@ class ScopedTempDir {
 
  private:
   std::filesystem::path path_;
+};
+
+// Sets (or, with a null value, unsets) an environment variable for one
+// scope; the old value comes back when the object dies.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value);
+  ~ScopedEnv();
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  std::string name_;
+  std::optional<std::string> old_;
 };
 
 // A program's exit code and its stdout and stderr together.
