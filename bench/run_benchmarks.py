@@ -935,6 +935,33 @@ def precompute_section(results):
                         "in-process us"], rows, ["l", "l", "r", "r", "r"])
     else:
         lines += ["Not run.", ""]
+    lines += ["### Import, in-process and isolated (`Import/`)", ""]
+    imports = {}
+    for key, run in results.family("Import").items():
+        if len(key) >= 3:
+            imports.setdefault(key[1], {})[key[2]] = run
+    if imports:
+        any_data = True
+        lines += ["`isk::importRig` of each shared asset (file in the OS "
+                  "page cache) in the calling process, and isolated: in a "
+                  "child process with a time limit (fork, import, the rig "
+                  "sent back over a pipe), which a file that hangs or "
+                  "crashes Assimp cannot take down.", ""]
+        rows = []
+        for model in imports:
+            inside = imports[model].get("in-process")
+            isolated = imports[model].get("isolated")
+            any_run = inside or isolated
+            rows.append([model, count(any_run.get("vertices")),
+                         ms(to_ms(inside)) if inside else "n/a",
+                         ms(to_ms(isolated)) if isolated else "n/a",
+                         ratio(to_ms(isolated) / to_ms(inside), 1)
+                         if inside and isolated else "n/a"])
+        lines += table(["model", "vertices", "in-process ms", "isolated ms",
+                        "isolated / in-process"], rows,
+                       ["l", "r", "r", "r", "r"])
+    else:
+        lines += ["Not run.", ""]
     return lines if any_data else ["## Precompute and start-up", "",
                                    "Not run.", ""]
 

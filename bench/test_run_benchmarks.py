@@ -135,6 +135,9 @@ class Render(unittest.TestCase):
             run("FieldBuild/M/threads:1", 100.0, vertices=1000, joints=4,
                 fields=4, field_MiB=2),
             run("FieldBuild/M/cached-load", 10.0, uncached_ms=100.0),
+            run("Import/M/in-process", 4.0, vertices=2612),
+            run("Import/M/isolated", 32.0, vertices=2612, in_process_ms=4.1,
+                overhead_ms=28.0),
         ])
         text = run_benchmarks.render(data, "cmd")
         self.assertIn("| M | 1,000 | dqs | 2.000 | 500 | 4.000 | 2.00x", text)
@@ -147,6 +150,8 @@ class Render(unittest.TestCase):
         self.assertIn("| M | 1,000 | 4 | 4 | 2.0 | 100.0 |", text)
         # The cached load and its speed-up over the build.
         self.assertIn("| 10.00 (10.0x) |", text)
+        # The isolated import beside the in-process one.
+        self.assertIn("| M | 2,612 | 4.000 | 32.00 | 8.0x |", text)
 
     def test_failed_runs_are_listed(self):
         failed = run("Implicit/M/opencl:0", 1.0)
