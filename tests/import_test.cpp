@@ -22,11 +22,13 @@
 #include "data_folder.hpp"
 #include "isk/error.hpp"
 #include "isk/procedural.hpp"
+#include "rig_gltf.hpp"
 #include "test_support.hpp"
 
 namespace isk {
 namespace {
 
+using test::readFile;
 using test::ScopedTempDir;
 
 namespace fs = std::filesystem;
@@ -38,38 +40,6 @@ std::string writeFile(const std::string& path, const std::string& bytes) {
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   EXPECT_TRUE(out.good()) << "cannot write " << path;
   return path;
-}
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::string base64(const std::string& bytes) {
-  static const char* kAlphabet =
-      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const uint32_t n = (uint8_t(bytes[i]) << 16) |
-                       (uint8_t(bytes[i + 1]) << 8) | uint8_t(bytes[i + 2]);
-    for (int k = 3; k >= 0; --k) out += kAlphabet[(n >> (6 * k)) & 63];
-  }
-  if (i + 1 == bytes.size()) {
-    const uint32_t n = uint8_t(bytes[i]) << 16;
-    out += kAlphabet[(n >> 18) & 63];
-    out += kAlphabet[(n >> 12) & 63];
-    out += "==";
-  } else if (i + 2 == bytes.size()) {
-    const uint32_t n = (uint8_t(bytes[i]) << 16) | (uint8_t(bytes[i + 1]) << 8);
-    out += kAlphabet[(n >> 18) & 63];
-    out += kAlphabet[(n >> 12) & 63];
-    out += kAlphabet[(n >> 6) & 63];
-    out += '=';
-  }
-  return out;
 }
 
 std::string jsonFloats(const float* values, int count) {
@@ -118,9 +88,9 @@ class GltfWriter {
     return "{\"asset\": {\"version\": \"2.0\"},\n\"buffers\": "
            "[{\"byteLength\": " +
            std::to_string(bin_.size()) +
-           ", \"uri\": \"data:application/octet-stream;base64," + base64(bin_) +
-           "\"}],\n\"bufferViews\": [" + views + "],\n\"accessors\": [" +
-           accessors + "],\n" + scene + "}\n";
+           ", \"uri\": \"data:application/octet-stream;base64," +
+           test::base64Encode(bin_) + "\"}],\n\"bufferViews\": [" + views +
+           "],\n\"accessors\": [" + accessors + "],\n" + scene + "}\n";
   }
 
  private:
