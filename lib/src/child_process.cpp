@@ -126,7 +126,7 @@ std::string failurePayload(ErrorCode code, int cl_status,
 }
 
 [[noreturn]] void childMain(
-    int fd, const std::string& subject, const ChildLimits& limits,
+    int fd, pid_t parent, const std::string& subject, const ChildLimits& limits,
     const std::function<std::string(const ProgressSink&)>& work) {
   ::signal(SIGPIPE, SIG_IGN);
   // A crash ends the child at once and is told to the parent as its signal:
@@ -139,6 +139,7 @@ std::string failurePayload(ErrorCode code, int cl_status,
   // Dies with the application, which may not live to kill it.
   ::prctl(PR_SET_PDEATHSIG, SIGKILL);
 #endif
+  if (::getppid() != parent) ::_exit(3);  // it died before we could know
   const bool memory_limited = limits.memory_limit_bytes > 0;
   if (memory_limited) {
     applyMemoryLimit(limits.memory_limit_bytes);
@@ -295,6 +296,7 @@ std::string runInChildProcess(
   // Processes that other threads start with exec must not hold the pipe.
   ::fcntl(fds[0], F_SETFD, FD_CLOEXEC);
   ::fcntl(fds[1], F_SETFD, FD_CLOEXEC);
+  const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {
     const int error = errno;
@@ -307,7 +309,7 @@ std::string runInChildProcess(
   }
   if (pid == 0) {
     ::close(fds[0]);
-    childMain(fds[1], subject, limits, work);
+    childMain(fds[1], parent, subject, limits, work);
   }
   ::close(fds[1]);
   ChildGuard child(pid, fds[0]);
