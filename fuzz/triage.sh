@@ -3,11 +3,12 @@
 #   fuzz/triage.sh FUZZER FINDINGS_DIR   (with the fuzz run's ASAN_OPTIONS and
 #                                        LSAN_OPTIONS in the environment)
 # Each crash-/timeout-/oom-/leak- file is run again; the report's first stack
-# frame outside the sanitizer runtime, libc, libstdc++ and zlib says whose
-# it is: libassimp -> "assimp" (the system's library, not instrumented: we
-# cannot fix it, only report it), anything else -> "isk". UBSan reports and
-# the harness's own findings are always ours. Prints one line per file and
-# exits 1 when any finding is ours. Triaged files move to FINDINGS_DIR/assimp,
+# frame outside the sanitizer runtime, libc (named by its library, or by its
+# source path when glibc's symbols are installed: string/..., sysdeps/...),
+# libstdc++ and zlib says whose it is: libassimp -> "assimp" (the system's
+# library, not instrumented: we cannot fix it, only report it), anything
+# else -> "isk". UBSan reports and the harness's own findings are always
+# ours. Prints one line per file and exits 1 when any finding is ours. Triaged files move to FINDINGS_DIR/assimp,
 # FINDINGS_DIR/isk or FINDINGS_DIR/none (no report when run again).
 set -uo pipefail
 fuzzer=$1
@@ -24,7 +25,7 @@ for input in "$dir"/crash-* "$dir"/timeout-* "$dir"/oom-* "$dir"/leak-*; do
     frame=$(grep -m1 "runtime error:\|isk fuzz finding:\|uncaught exception" <<<"$report")
   else
     frame=$(grep -E '^ +#[0-9]+ ' <<<"$report" |
-      grep -v -E 'isk_import_fuzzer\+0x|libc\.so|libstdc\+\+|libz\.so|libgcc_s' |
+      grep -v -E 'isk_import_fuzzer\+0x|libc\.so|libstdc\+\+|libz\.so|libgcc_s| (csu|string|sysdeps|stdlib|nptl|malloc)/' |
       head -n1)
     case "$frame" in
       *libassimp*) owner=assimp ;;
