@@ -8,8 +8,9 @@
 # libstdc++ and zlib says whose it is: libassimp -> "assimp" (the system's
 # library, not instrumented: we cannot fix it, only report it), anything
 # else -> "isk". UBSan reports and the harness's own findings are always
-# ours. Prints one line per file and exits 1 when any finding is ours. Triaged files move to FINDINGS_DIR/assimp,
-# FINDINGS_DIR/isk or FINDINGS_DIR/none (no report when run again).
+# ours. Prints one line per file and exits 1 when any finding is ours.
+# Triaged files move to FINDINGS_DIR/assimp, FINDINGS_DIR/isk or
+# FINDINGS_DIR/none (no report when run again).
 set -uo pipefail
 fuzzer=$1
 dir=$2
