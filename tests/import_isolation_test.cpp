@@ -5,8 +5,9 @@
 // returns the rig of an in-process one, bit for bit, and the same errors.
 //
 // The hang is Assimp 5.2's: a COLLADA index list (<p>) holding a non-number
-// keeps its parser busy forever. The tests make such a file from scratch
-// (a 30-line COLLADA triangle) and from the shared RiggedSimple.dae.
+// keeps its parser busy forever; so is the crash: a float_array without its
+// count attribute. The tests make such files from scratch (a 30-line
+// COLLADA triangle) and from the shared RiggedSimple.dae.
 // Crashes, silent exits and memory hogs are made by running test work in
 // the child through the same machinery (child_process.hpp). The memory limit
 // on real imports is checked in a fresh process (isk_skin_test.cpp,
@@ -282,6 +283,53 @@ TEST(ImportIsolation, HangingAssetStopsAtTheTimeLimit) {
   ScopedTempDir dir;
   expectStoppedAtTheTimeLimit(
       test::writeBytes(dir.file("RiggedSimple-corrupt.dae"), bytes));
+}
+
+// A COLLADA float_array without its count attribute makes Assimp 5.2
+// write past an empty array: SIGSEGV in-process (found by the fuzzer). In
+// a child process it is an error naming the file and the signal, and the
+// application goes on.
+std::string withoutFloatCount(std::string dae, const std::string& count) {
+  const size_t at = dae.find("count=\"" + count + "\"");
+  EXPECT_NE(at, std::string::npos) << "no count=\"" << count << "\"";
+  if (at != std::string::npos) dae.replace(at, 5, "cnt");
+  return dae;
+}
+
+void expectCrashIsAnError(const std::string& path) {
+  const std::set<int> children_before = childProcesses();
+  const Error e = importError(path, isolatedWithLimits());
+  EXPECT_EQ(e.code(), ErrorCode::kMalformedAsset) << e.what();
+  EXPECT_NE(std::string(e.what()).find(path + ": the import crashed (SIGSEGV)"),
+            std::string::npos)
+      << e.what();
+  EXPECT_EQ(childProcesses(), children_before);
+}
+
+TEST(ImportIsolation, CrashingColladaIsAnError) {
+  ScopedTempDir dir;
+  const std::string dae = test::colladaTriangle("0 1 2");
+  ASSERT_NE(dae.find("<float_array id=\"tri-positions-array\" count=\"9\""),
+            std::string::npos);
+  expectCrashIsAnError(
+      test::writeBytes(dir.file("crashes.dae"), withoutFloatCount(dae, "9")));
+  // The application goes on importing.
+  EXPECT_EQ(importError(test::writeBytes(dir.file("good.dae"), dae),
+                        isolatedWithLimits())
+                .code(),
+            ErrorCode::kMalformedAsset);
+}
+
+TEST(ImportIsolation, CrashingAssetIsAnError) {
+  if (!test::haveAssets()) {
+    GTEST_SKIP() << test::missingAssetsMessage(
+        "the crash of a corrupted RiggedSimple.dae");
+  }
+  ScopedTempDir dir;
+  expectCrashIsAnError(test::writeBytes(
+      dir.file("RiggedSimple-no-count.dae"),
+      withoutFloatCount(test::readFile(samples::dataFile("RiggedSimple.dae")),
+                        "288")));
 }
 
 TEST(ImportIsolation, BadLimitsAreRejected) {

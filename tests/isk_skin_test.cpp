@@ -492,6 +492,24 @@ TEST(IskSkinTest, AHangingImportStopsAtTheImportTimeout) {
   }
 }
 
+// A file that crashes Assimp (a COLLADA float_array without its count
+// attribute: SIGSEGV) is an error naming it; nothing is written.
+TEST(IskSkinTest, AnImportThatCrashesIsAnError) {
+  ScopedTempDir dir;
+  std::string dae = test::colladaTriangle("0 1 2");
+  const size_t count = dae.find("count=\"9\"");
+  ASSERT_NE(count, std::string::npos);
+  dae.replace(count, 5, "cnt");
+  const std::string input = test::writeBytes(dir / "crashes.dae", dae);
+  const std::vector<std::string> args = {input, "--out", dir / "out"};
+  const RunOutput run = runIskSkin(args);
+  EXPECT_EQ(run.exit_code, 1) << describe(args, run);
+  EXPECT_NE(run.output.find("crashes.dae: the import crashed (SIGSEGV)"),
+            std::string::npos)
+      << describe(args, run);
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
 // --import-memory stops an import that needs more, with an error naming the
 // file and the limit; 1024 MiB lets it through. On a procedural rig and on
 // an asset.
