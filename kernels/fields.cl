@@ -18,6 +18,9 @@
 //      (x, y, z) at x + N * (y + N * z), interpolated trilinearly here exactly
 //      as FieldGrid::sampleLocal does it.
 // A node's float4 is (value, gradient x y z), gradient in the bone frame.
+// field_cells: per field ceil((N-1)^3 / 32) uint words, one bit per grid
+// cell (isk::occupiedCells): clear when the cell's 8 nodes are all zero, so
+// that a sample there is zero without loading them.
 //
 // Field parameters: ISK_FIELD_PARAM_STRIDE float4 per field,
 //   [0..2] rows of the model -> bone 3x4 matrix (per pose);
@@ -49,8 +52,8 @@
 //
 // Later kernels sample the same data: declare ISK_FIELD_PARAMS and
 // ISK_COMPOSITION_PARAMS among their parameters (field data, field params,
-// field count, resolution: four consecutive kernel arguments bound by
-// ClFieldEvaluation::setFieldArgs; then the five above) and call
+// field count, resolution, field cells: five consecutive kernel arguments
+// bound by ClFieldEvaluation::setFieldArgs; then the six above) and call
 // sample_composed(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x).
 
 // The reference interpolates without fused multiply-adds; so does the buffer
@@ -106,8 +109,10 @@ ISK_INLINE float4 trilinear_texels(read_only image3d_t image, const int4 origin,
 
 #define ISK_FIELD_PARAMS                                            \
   ISK_FIELD_DATA_T field_data, __global const float4 *field_params, \
-      const uint field_count, const int resolution
-#define ISK_FIELD_ARGS field_data, field_params, field_count, resolution
+      const uint field_count, const int resolution,                 \
+      __global const uint *field_cells
+#define ISK_FIELD_ARGS \
+  field_data, field_params, field_count, resolution, field_cells
 #define ISK_COMPOSITION_PARAMS                                              \
   ISK_OPERATOR_DATA_T operator_data, __global const int4 *pairs,            \
       const uint pair_count, __global const float *pair_angles,             \
@@ -148,9 +153,20 @@ ISK_INLINE bool inside_nodes(const float3 u, const int resolution) {
 // Value and bone-frame gradient of field `field` at node coordinates u
 // (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
 ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
-                          __global const float4* params, const uint field,
-                          const int resolution, const float3 u) {
+                                     __global const float4* params,
+                                     __global const uint* field_cells,
+                                     const uint field, const int resolution,
+                                     const float3 u) {
   if (!inside_nodes(u, resolution)) return (float4)(0.0f);
+  // A cell whose 8 nodes are all zero interpolates to zero: its grid
+  // loads are skipped (most of a support box lies outside the field's
+  // support).
+  const uint cells = (uint)(resolution - 1);
+  const int3 c = min(convert_int3_rtz(u), (int3)(resolution - 2));
+  const uint cell = (uint)c.x + cells * ((uint)c.y + cells * (uint)c.z);
+  const uint words = (cells * cells * cells + 31u) / 32u;
+  if (!((field_cells[field * words + (cell >> 5)] >> (cell & 31u)) & 1u))
+    return (float4)(0.0f);
 #if ISK_FIELDS_IMAGE
   const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
   return trilinear_texels(field_data, (int4)(convert_int3_rtz(origin), 0),
@@ -180,11 +196,13 @@ ISK_INLINE float3 field_node_coords(__global const float4* field_params,
 // Value and model-space gradient of field `field` at node coordinates u:
 // the gradient comes back by the transpose of the rows' linear part.
 ISK_INLINE float4 sample_field_at(ISK_FIELD_DATA_T field_data,
-                       __global const float4* field_params, const uint field,
-                       const int resolution, const float3 u) {
+                                  __global const float4* field_params,
+                                  __global const uint* field_cells,
+                                  const uint field, const int resolution,
+                                  const float3 u) {
   __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
-  const float4 s =
-      sample_field_nodes(field_data, field_params, field, resolution, u);
+  const float4 s = sample_field_nodes(field_data, field_params, field_cells,
+                                      field, resolution, u);
   const float3 g = s.y * p[0].xyz + s.z * p[1].xyz + s.w * p[2].xyz;
   return (float4)(s.x, g);
 }
@@ -192,10 +210,12 @@ ISK_INLINE float4 sample_field_at(ISK_FIELD_DATA_T field_data,
 // Value and model-space gradient of field `field` at model-space point x
 // (posed).
 ISK_INLINE float4 sample_field(ISK_FIELD_DATA_T field_data,
-                    __global const float4* field_params, const uint field,
-                    const int resolution, const float3 x) {
-  return sample_field_at(field_data, field_params, field, resolution,
-                         field_node_coords(field_params, field, x));
+                               __global const float4* field_params,
+                               __global const uint* field_cells,
+                               const uint field, const int resolution,
+                               const float3 x) {
+  return sample_field_at(field_data, field_params, field_cells, field,
+                         resolution, field_node_coords(field_params, field, x));
 }
 
 // The field `field` at x if x lies in its bounding sphere, else 0 (value and
@@ -208,11 +228,13 @@ ISK_INLINE bool inside_sphere(__global const float4* field_params, const uint fi
 }
 
 ISK_INLINE float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
-                           __global const float4* field_params,
-                           const uint field, const int resolution,
-                           const float3 x) {
+                                      __global const float4* field_params,
+                                      __global const uint* field_cells,
+                                      const uint field, const int resolution,
+                                      const float3 x) {
   if (!inside_sphere(field_params, field, x)) return (float4)(0.0f);
-  return sample_field(field_data, field_params, field, resolution, x);
+  return sample_field(field_data, field_params, field_cells, field, resolution,
+                      x);
 }
 
 // Union (Vaillant et al. 2013, eq. 3): the larger value with its gradient;
@@ -275,10 +297,10 @@ float4 compose_pair(ISK_COMPOSITION_PARAMS, const uint k, const float4 a,
 float4 compose_one_pair(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                         const float3 x, const uint k, const float4 best) {
   const int4 pair = pairs[k];
-  const float4 a = sample_field_culled(field_data, field_params, (uint)pair.x,
+  const float4 a = sample_field_culled(field_data, field_params, field_cells, (uint)pair.x,
                                        resolution, x);
   if (!(a.x > 0.0f)) return best;  // the pair is max(a, b): already in
-  const float4 b = sample_field_culled(field_data, field_params, (uint)pair.y,
+  const float4 b = sample_field_culled(field_data, field_params, field_cells, (uint)pair.y,
                                        resolution, x);
   if (!(b.x > 0.0f)) return best;
   return compose_union(best, compose_pair(ISK_COMPOSITION_ARGS, k, a, b));
@@ -297,7 +319,7 @@ float4 sample_composed(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                        const float3 x) {
   float4 best = (float4)(0.0f);
   for (uint i = 0; i < field_count; ++i)
-    best = compose_union(best, sample_field_culled(field_data, field_params, i,
+    best = compose_union(best, sample_field_culled(field_data, field_params, field_cells, i,
                                                    resolution, x));
   return compose_pairs(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, best);
 }
@@ -305,12 +327,13 @@ float4 sample_composed(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
 // Arguments (ClFieldEvaluation binds them in this order):
 //   0 points            packed float3 (x y z per point), model space, posed
 //   1 point_count
-//   2..5 field data, field params, field count, resolution (see above)
-//   6..11 operator data, pairs, pair count, pair angles, controllers,
+//   2..6 field data, field params, field count, resolution, field cells
+//        (see above)
+//   7..12 operator data, pairs, pair count, pair angles, controllers,
 //         operator scales (see above)
-//   12 out_composed     one float4 per point: value, gradient x y z
-//   13 out_per_field    one float4 per point and field, row p * F + i
-//   14 write_per_field  0: out_per_field is not touched (may be a dummy)
+//   13 out_composed     one float4 per point: value, gradient x y z
+//   14 out_per_field    one float4 per point and field, row p * F + i
+//   15 write_per_field  0: out_per_field is not touched (may be a dummy)
 __kernel void evaluate_fields(__global const float* points,
                               const uint point_count, ISK_FIELD_PARAMS,
                               ISK_COMPOSITION_PARAMS,
@@ -323,7 +346,7 @@ __kernel void evaluate_fields(__global const float* points,
   float4 best = (float4)(0.0f);
   for (uint i = 0; i < field_count; ++i) {
     const float4 s =
-        sample_field_culled(field_data, field_params, i, resolution, x);
+        sample_field_culled(field_data, field_params, field_cells, i, resolution, x);
     if (write_per_field) out_per_field[(size_t)p * field_count + i] = s;
     best = compose_union(best, s);
   }

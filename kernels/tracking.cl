@@ -76,11 +76,11 @@ float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
       float4 s;
       if ((int)i == home)  // its node coordinates are known
         s = inside_sphere(field_params, i, x)
-                ? sample_field_at(field_data, field_params, i, resolution,
+                ? sample_field_at(field_data, field_params, field_cells, i, resolution,
                                   home_u)
                 : (float4)(0.0f);
       else
-        s = sample_field_culled(field_data, field_params, i, resolution, x);
+        s = sample_field_culled(field_data, field_params, field_cells, i, resolution, x);
       best = compose_union(best, s);
       if ((int)i == home)
         h = s;
@@ -100,7 +100,7 @@ float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
   }
   for (uint i = 0; i < field_count; ++i) {
     const float4 s =
-        sample_field_culled(field_data, field_params, i, resolution, x);
+        sample_field_culled(field_data, field_params, field_cells, i, resolution, x);
     best = compose_union(best, s);
     if (home < 0) continue;
     if ((int)i == home) {

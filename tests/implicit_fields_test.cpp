@@ -265,6 +265,55 @@ TEST(ImplicitFields, BakedGridMatchesTheAnalyticFieldOnAssets) {
   FOR_ASSETS(checkBaking, "the baking checks on assets");
 }
 
+// occupiedCells: a cell's bit is set exactly when one of its 8 nodes is not
+// all zero, and every sample in a clear cell is exactly zero (what lets the
+// kernels skip its loads). Some cells of every rig are clear (there is
+// something to skip), and the first wrong cell is named.
+void checkOccupiedCells(const std::string& name) {
+  const ImplicitFields& fields = implicitFieldsOf(name);
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> unit(0, 1);
+  size_t clear = 0, total = 0;
+  for (const FieldGrid& grid : fields.grids.grids) {
+    SCOPED_TRACE("field of joint " + std::to_string(grid.joint));
+    const int n = grid.resolution, cells = n - 1;
+    const std::vector<uint32_t> bits = occupiedCells(grid);
+    ASSERT_EQ(bits.size(),
+              (static_cast<size_t>(cells) * cells * cells + 31) / 32);
+    auto nodeIsZero = [&](int i, int j, int k) {
+      const float* node = &grid.nodes[4 * (i + n * (j + n * k))];
+      return node[0] == 0 && node[1] == 0 && node[2] == 0 && node[3] == 0;
+    };
+    for (int k = 0; k < cells; ++k)
+      for (int j = 0; j < cells; ++j)
+        for (int i = 0; i < cells; ++i) {
+          bool any = false;
+          for (int c = 0; c < 8; ++c)
+            any =
+                any || !nodeIsZero(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2));
+          const size_t cell = i + cells * (j + static_cast<size_t>(cells) * k);
+          const bool set = bits[cell / 32] >> (cell % 32) & 1u;
+          ASSERT_EQ(set, any) << "cell (" << i << ", " << j << ", " << k << ")";
+          ++total;
+          if (set) continue;
+          ++clear;
+          const Eigen::Vector3f u(i + unit(random), j + unit(random),
+                                  k + unit(random));
+          const Eigen::Vector3f local =
+              grid.box_min + u.cwiseProduct(grid.spacing());
+          ASSERT_EQ(grid.sampleLocal(local), Eigen::Vector4f::Zero())
+              << "in clear cell (" << i << ", " << j << ", " << k << ")";
+        }
+  }
+  EXPECT_GT(clear, 0u) << "of " << total << " cells";
+}
+TEST(ImplicitFields, OccupiedCellsOnProceduralRigs) {
+  FOR_PROCEDURAL_RIGS(checkOccupiedCells);
+}
+TEST(ImplicitFields, OccupiedCellsOnAssets) {
+  FOR_ASSETS(checkOccupiedCells, "the occupied cell checks on assets");
+}
+
 // --- the 0.5 iso against the mesh part ---------------------------------------
 
 // Distance from x to the first crossing of f's 0.5 iso along the ray from x in

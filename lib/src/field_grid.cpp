@@ -18,6 +18,32 @@ Eigen::Vector4f FieldGrid::sampleLocal(const Eigen::Vector3f& local) const {
   return detail::trilinearNodes(nodes.data(), resolution, coordinates);
 }
 
+std::vector<uint32_t> occupiedCells(const FieldGrid& grid) {
+  const size_t n = static_cast<size_t>(std::max(grid.resolution, 2));
+  const size_t cells = n - 1;
+  std::vector<uint32_t> bits((cells * cells * cells + 31) / 32, 0u);
+  if (grid.nodes.size() < 4 * n * n * n) return bits;
+  // Nodes with any non-zero component, then each cell from its 8 corners.
+  std::vector<uint8_t> live(n * n * n);
+  for (size_t i = 0; i < live.size(); ++i) {
+    const float* node = &grid.nodes[4 * i];
+    live[i] =
+        node[0] != 0.f || node[1] != 0.f || node[2] != 0.f || node[3] != 0.f;
+  }
+  for (size_t k = 0; k < cells; ++k)
+    for (size_t j = 0; j < cells; ++j)
+      for (size_t i = 0; i < cells; ++i) {
+        bool any = false;
+        for (size_t c = 0; c < 8 && !any; ++c)
+          any = live[(i + (c & 1)) +
+                     n * ((j + ((c >> 1) & 1)) + n * (k + (c >> 2)))] != 0;
+        if (!any) continue;
+        const size_t cell = i + cells * (j + cells * k);
+        bits[cell / 32] |= 1u << (cell % 32);
+      }
+  return bits;
+}
+
 FieldGrid bakeField(const BoneField& field, int resolution) {
   if (resolution < 2)
     throw Error(ErrorCode::kInvalidArgument,

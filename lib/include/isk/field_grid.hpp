@@ -9,6 +9,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <vector>
 
 #include "isk/bone_field.hpp"
@@ -44,6 +45,15 @@ struct FieldGrid {
 // Bakes `field` at `resolution`^3 nodes over its support box. Throws
 // isk::Error(kInvalidArgument) for a resolution below 2.
 FieldGrid bakeField(const BoneField& field, int resolution = 32);
+
+// The cells of `grid` that can interpolate to non-zero: one bit per cell,
+// (resolution - 1)^3 cells, cell (i, j, k) (nodes i..i+1, j..j+1, k..k+1)
+// at bit i + (N - 1) * (j + (N - 1) * k), 32 per word, lowest bit first;
+// ceil((N - 1)^3 / 32) words. A bit is set when any of the cell's 8 nodes
+// has a non-zero value or gradient component: a sample in a clear cell is
+// exactly zero, so the kernels skip its loads (most of a support box lies
+// outside the field's compact support).
+std::vector<uint32_t> occupiedCells(const FieldGrid& grid);
 
 // All baked fields of a character, ready to upload.
 struct FieldGridSet {

@@ -171,6 +171,16 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
     else
       uploadBuffer(fields);
     uploadComposition(composition);
+    // Every field's occupiedCells, one after the other.
+    std::vector<uint32_t> cells;
+    for (const FieldGrid& g : fields.grids) {
+      const std::vector<uint32_t> bits = occupiedCells(g);
+      cells.insert(cells.end(), bits.begin(), bits.end());
+    }
+    if (cells.empty()) cells.push_back(0u);  // a valid buffer
+    cells_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                        cells.size() * sizeof(uint32_t),
+                        const_cast<uint32_t*>(cells.data()));
     params_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                          params_staging_.size() * sizeof(float),
                          params_staging_.data());
@@ -428,10 +438,11 @@ void ClFieldEvaluation::setFieldArgs(cl::Kernel& kernel,
     kernel.setArg(first_index + 1, params_);
     kernel.setArg(first_index + 2, static_cast<cl_uint>(field_count_));
     kernel.setArg(first_index + 3, static_cast<cl_int>(resolution_));
+    kernel.setArg(first_index + 4, cells_);
   } catch (const cl::Error& e) {
     throwClError(e, "ClFieldEvaluation::setFieldArgs (arguments " +
                         std::to_string(first_index) + " to " +
-                        std::to_string(first_index + 3) + ")");
+                        std::to_string(first_index + 4) + ")");
   }
 }
 
@@ -528,10 +539,10 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
     kernel_.setArg(0, points);
     kernel_.setArg(1, static_cast<cl_uint>(point_count));
     setFieldArgs(kernel_, 2);
-    setCompositionArgs(kernel_, 6);
-    kernel_.setArg(12, composed_);
-    kernel_.setArg(13, per_field && field_count_ > 0 ? per_field_ : dummy_);
-    kernel_.setArg(14, static_cast<cl_uint>(per_field ? 1 : 0));
+    setCompositionArgs(kernel_, 7);
+    kernel_.setArg(13, composed_);
+    kernel_.setArg(14, per_field && field_count_ > 0 ? per_field_ : dummy_);
+    kernel_.setArg(15, static_cast<cl_uint>(per_field ? 1 : 0));
     cl::Event run;
     const auto start = std::chrono::steady_clock::now();
     context_->queue().enqueueNDRangeKernel(

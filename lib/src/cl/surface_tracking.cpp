@@ -262,9 +262,9 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(7, min_gradient);
     setContactArgs(project_, 8);
     fields_->setFieldArgs(project_, 16);
-    fields_->setCompositionArgs(project_, 20);
-    project_.setArg(26, relax_frames_);
-    project_.setArg(27, march_order_);
+    fields_->setCompositionArgs(project_, 21);
+    project_.setArg(27, relax_frames_);
+    project_.setArg(28, march_order_);
     launch(project_, kProjection, march_count);
   } catch (const cl::Error& e) {
     throwClError(

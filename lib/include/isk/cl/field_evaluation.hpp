@@ -31,16 +31,15 @@
 //
 // Other kernels can sample the same data (kernels/fields.cl: functions
 // sample_field, compose_pair, sample_composed): build them with
-// buildOptions(), put ISK_FIELD_PARAMS (four consecutive arguments: field
-// data, field params, field count, resolution) and ISK_COMPOSITION_PARAMS
-// (six: operator data, pairs, pair count, pair angles, controllers,
-// operator scales)
-// among their parameters and bind them with setFieldArgs(kernel, first) and
-// setCompositionArgs(kernel, first) after setPose(). The evaluate_fields
-// kernel itself takes: 0 points (packed float3), 1 point count, 2..5 the
-// field arguments, 6..11 the composition arguments, 12 composed output
-// (float4 per point), 13 per-field output (float4 per point and field, row
-// p * F + i), 14 whether to write the per-field output.
+// buildOptions(), put ISK_FIELD_PARAMS (five consecutive arguments: field
+// data, field params, field count, resolution, field cells) and
+// ISK_COMPOSITION_PARAMS (six: operator data, pairs, pair count, pair angles,
+// controllers, operator scales) among their parameters and bind them with
+// setFieldArgs(kernel, first) and setCompositionArgs(kernel, first) after
+// setPose(). The evaluate_fields kernel itself takes: 0 points (packed float3),
+// 1 point count, 2..5 the field arguments, 6..11 the composition arguments, 12
+// composed output (float4 per point), 13 per-field output (float4 per point and
+// field, row p * F + i), 14 whether to write the per-field output.
 #pragma once
 
 #include <array>
@@ -107,8 +106,9 @@ class ClFieldEvaluation {
   // evaluate() does it itself. Validates like evaluate().
   void setPose(const TransformList& skinning);
 
-  // Binds field data, field params, field count and resolution to
-  // arguments first_index .. first_index + 3 of `kernel` (a kernel of a
+  // Binds field data, field params, field count, resolution and the
+  // occupied cells (isk::occupiedCells) to arguments first_index ..
+  // first_index + 4 of `kernel` (a kernel of a
   // program built with buildOptions()).
   void setFieldArgs(cl::Kernel& kernel, cl_uint first_index) const;
   // Binds operator data, pairs, pair count, pair angles, controllers and
@@ -176,6 +176,7 @@ class ClFieldEvaluation {
   cl::Image3D image_;
   cl::Buffer nodes_;
   cl::Buffer params_;
+  cl::Buffer cells_;  // occupiedCells of the grids
   cl::Image3D operator_image_;
   cl::Buffer operator_nodes_, pairs_, pair_angles_, controllers_;
   Composition composition_layout_;  // the composition without its tables
