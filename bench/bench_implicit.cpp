@@ -188,6 +188,7 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever == "no-neighbourhoods")
     options.tracking.field_neighbourhoods = false;
   if (lever == "no-march-order") options.tracking.march_order = false;
+  if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
   implicitOpenClWith(state, c, device, options);
 }
 
@@ -265,13 +266,16 @@ void registerImplicitBenchmarks() {
     registerCase("Implicit/" + model.name + "/", modelCase(model), true,
                  "opencl", kMinTimeS);
   }
-  // The speed switches, on the 53-field human and the 38k-vertex model.
+  // The speed switches, on the 53-field human and the 38k- and 152k-vertex
+  // models.
   for (const Model& model : models()) {
     if (!available(model) ||
-        (model.name != "human-addon" && model.name != "CesiumMan-x16"))
+        (model.name != "human-addon" && model.name != "CesiumMan-x16" &&
+         model.name != "CesiumMan-x64"))
       continue;
     for (const ClDeviceInfo& device : devices())
-      for (const char* lever : {"all", "no-neighbourhoods", "no-march-order"})
+      for (const char* lever :
+           {"all", "no-neighbourhoods", "no-march-order", "no-occupied-cells"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

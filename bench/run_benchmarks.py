@@ -165,7 +165,8 @@ class Results:
             for part in key:
                 m = re.fullmatch(r"(opencl|opencl-buffer|opencl-image|dqs|"
                                  r"implicit|cold|warm|in-process|all|"
-                                 r"no-neighbourhoods|no-march-order):(\d+)",
+                                 r"no-neighbourhoods|no-march-order|"
+                                 r"no-occupied-cells):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
                     self.devices[int(m.group(2))] = {
@@ -560,7 +561,7 @@ def implicit_section(results):
     return lines
 
 
-LEVERS = ("all", "no-neighbourhoods", "no-march-order")
+LEVERS = ("all", "no-neighbourhoods", "no-march-order", "no-occupied-cells")
 
 
 def levers_section(results):
@@ -574,10 +575,13 @@ def levers_section(results):
               "support box samples only the fields whose posed boxes meet "
               "that box, instead of every field) and `march_order` (the "
               "projection marches the vertices by home field and along a "
-              "Morton curve of their rest positions, instead of by index). "
-              "Neither changes the result (tests compare the frames bit for "
-              "bit); 'all' has both on. 'frame / all' is the frame's time "
-              "over the 'all' frame's, measured in the same run.", ""]
+              "Morton curve of their rest positions, instead of by index) "
+              "and `occupied_cells` (a field sample in a grid cell whose 8 "
+              "nodes are all zero skips the cell's loads, one bit per cell "
+              "telling which; `isk::occupiedCells`). "
+              "None changes the result (tests compare the frames bit for "
+              "bit); 'all' has every switch on. 'frame / all' is the frame's "
+              "time over the 'all' frame's, measured in the same run.", ""]
     models = {}
     for key, run in runs.items():
         if len(key) == 3:

@@ -50,12 +50,18 @@ class Render(unittest.TestCase):
                 projection_ms=8.0, vertices=7798),
             run("Levers/human-addon/no-neighbourhoods:0/min_time:2.000", 15.0,
                 projection_ms=13.0, vertices=7798),
+            run("Levers/human-addon/no-occupied-cells:0/min_time:2.000", 12.5,
+                projection_ms=10.5, vertices=7798),
         ])
         text = run_benchmarks.render(data, "cmd")
         rows = [l for l in text.splitlines()
                 if l.startswith("| human-addon | no-neighbourhoods")]
         self.assertEqual(len(rows), 1, text)
         self.assertTrue(rows[0].endswith("| 1.50x |"), rows[0])
+        rows = [l for l in text.splitlines()
+                if l.startswith("| human-addon | no-occupied-cells")]
+        self.assertEqual(len(rows), 1, text)
+        self.assertTrue(rows[0].endswith("| 1.25x |"), rows[0])
         self.assertNotIn("nan", text.lower())
 
     def test_targets_from_the_figures(self):

@@ -843,15 +843,19 @@ TEST(ImplicitSkinner, CharactersShareOneContext) {
             1e-5f * finger.boundingBoxDiagonal());
 }
 
-// The speed switches (neighbourhoods, march order) change no result: the
-// same frame with each off, on the CPU reference and on OpenCL.
+// The speed switches (neighbourhoods, march order, occupied cells) change no
+// result: the same frame with each off, on the CPU reference and on OpenCL.
 void checkSpeedSwitches(const Rig& rig,
                         std::shared_ptr<const ImplicitFields> fields,
                         const TransformList& pose) {
-  auto frames = [&](bool neighbourhoods, bool march_order) {
+  struct Switches {
+    bool neighbourhoods = true, march_order = true, cells = true;
+  };
+  auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
-    options.tracking.field_neighbourhoods = neighbourhoods;
-    options.tracking.march_order = march_order;
+    options.tracking.field_neighbourhoods = on.neighbourhoods;
+    options.tracking.march_order = on.march_order;
+    options.tracking.occupied_cells = on.cells;
     CpuImplicitSkinner cpu(rig, fields, options);
     cpu.run(pose);
     ImplicitSkinner device(test::sharedContext(), rig, fields, options);
@@ -860,14 +864,15 @@ void checkSpeedSwitches(const Rig& rig,
     device.readPositions(positions);
     return std::make_pair(Matrix3Xf(cpu.positions()), positions);
   };
-  const auto all = frames(true, true);
-  for (const auto& [neighbourhoods, march_order] :
-       {std::make_pair(false, true), std::make_pair(true, false),
-        std::make_pair(false, false)}) {
+  const auto all = frames({});
+  for (const Switches& on :
+       {Switches{false, true, true}, Switches{true, false, true},
+        Switches{true, true, false}, Switches{false, false, false}}) {
     SCOPED_TRACE(std::string("neighbourhoods ") +
-                 (neighbourhoods ? "on" : "off") + ", march order " +
-                 (march_order ? "on" : "off"));
-    const auto other = frames(neighbourhoods, march_order);
+                 (on.neighbourhoods ? "on" : "off") + ", march order " +
+                 (on.march_order ? "on" : "off") + ", occupied cells " +
+                 (on.cells ? "on" : "off"));
+    const auto other = frames(on);
     const test::RowMismatch cpu =
         test::largestRowDistance(other.first, all.first);
     EXPECT_EQ(cpu.distance, 0.f) << "CPU reference, vertex " << cpu.row;

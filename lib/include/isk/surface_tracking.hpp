@@ -108,10 +108,12 @@ struct SurfaceTrackingOptions {
   // Speed only, the same result either way (benchmarks switch them off to
   // measure them): sample a vertex's home field neighbourhood instead of
   // every field while it is in its home field's box (FieldNeighbourhoods),
-  // and march the vertices in TrackingMesh::march_order rather than by
-  // index (OpenCL).
+  // march the vertices in TrackingMesh::march_order rather than by index
+  // (OpenCL), and skip the grid loads of cells that are zero at all 8
+  // nodes (occupiedCells; OpenCL).
   bool field_neighbourhoods = true;
   bool march_order = true;
+  bool occupied_cells = true;
 
   // Names the first bad parameter and its valid range.
   Validation validate() const;

@@ -93,6 +93,14 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       std::sort(by_index.begin(), by_index.end());
       march_order_ = uploadReadOnly(*context_, by_index, &bytes_);
     }
+    if (!options.occupied_cells) {  // every cell marked: nothing skipped
+      const size_t cells =
+          static_cast<size_t>(fields_->layout().resolution) - 1;
+      const std::vector<uint32_t> every(
+          std::max<size_t>(fields, 1) * ((cells * cells * cells + 31) / 32),
+          ~0u);
+      every_cell_ = uploadReadOnly(*context_, every, &bytes_);
+    }
     ring_offsets_ = uploadReadOnly(*context_, mesh.rings.offsets, &bytes_);
     ring_neighbours_ =
         uploadReadOnly(*context_, mesh.rings.neighbours, &bytes_);
@@ -262,6 +270,7 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(7, min_gradient);
     setContactArgs(project_, 8);
     fields_->setFieldArgs(project_, 16);
+    if (!options_.occupied_cells) project_.setArg(20, every_cell_);
     fields_->setCompositionArgs(project_, 21);
     project_.setArg(27, relax_frames_);
     project_.setArg(28, march_order_);

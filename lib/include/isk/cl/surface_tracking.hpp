@@ -108,6 +108,7 @@ class ClSurfaceTracking {
   float diagonal_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
+  cl::Buffer every_cell_;  // options.occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, march_order_, rules_, kinds_,
       home_fields_, home_margins_, partners_, neighbour_offsets_,
       neighbour_entries_, neighbour_pair_offsets_, neighbour_pairs_,
