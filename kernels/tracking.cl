@@ -73,14 +73,17 @@ float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     for (int n = neighbour_offsets[home]; n < end; ++n) {
       const int entry = neighbour_entries[n];
       const uint i = (uint)(entry & NEIGHBOUR_FIELD);
-      float4 s;
-      if ((int)i == home)  // its node coordinates are known
-        s = inside_sphere(field_params, i, x)
-                ? sample_field_at(field_data, field_params, field_cells, i, resolution,
-                                  home_u)
-                : (float4)(0.0f);
-      else
-        s = sample_field_culled(field_data, field_params, field_cells, i, resolution, x);
+      if (!inside_sphere(field_params, i, x)) continue;
+      const float4 s =
+          (int)i == home  // its node coordinates are known
+              ? sample_field_at(field_data, field_params, field_cells, i,
+                                resolution, home_u)
+              : sample_field(field_data, field_params, field_cells, i,
+                             resolution, x);
+      // A zero value changes none of the unions, and the home sample is
+      // only used where its value is above 0: skip the bookkeeping (a chain
+      // of selects per listed field).
+      if (!(s.x > 0.0f)) continue;
       best = compose_union(best, s);
       if ((int)i == home)
         h = s;
