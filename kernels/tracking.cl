@@ -102,8 +102,9 @@ float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     return best;
   }
   for (uint i = 0; i < field_count; ++i) {
-    const float4 s =
-        sample_field_culled(field_data, field_params, field_cells, i, resolution, x);
+    const float4 s = sample_field_culled(field_data, field_params, field_cells,
+                                         i, resolution, x);
+    if (!(s.x > 0.0f)) continue;  // changes nothing (see above)
     best = compose_union(best, s);
     if (home < 0) continue;
     if ((int)i == home) {
