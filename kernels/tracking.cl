@@ -7,6 +7,11 @@
 // (the include below is resolved from the embedded sources; compiled on its
 // own, pass -I kernels).
 //
+// Every per-vertex array and the one-rings are in the device's vertex order
+// (ClSurfaceTracking: the tracked vertices in march order, then the others),
+// so the projection reads its vertices in sequence; track_begin gathers the
+// skinned positions into it and track_copy_duplicates scatters the results
+// back to the mesh's order.
 // Layout: positions are packed float triples (vload3/vstore3); one uchar
 // state per vertex (TRACK_* below); prev_gradients one float4 per vertex
 // (xyz the unit gradient of the vertex's last projection step, w = 1 when
@@ -121,8 +126,10 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
   return compose_pairs(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, best);
 }
 
-// The skinned positions become the working positions; every representative
-// with an iso value starts marching.
+// The skinned positions become the working positions, gathered into the
+// device's vertex order (source[v]: the mesh vertex at device index v; the
+// host keeps the tracked vertices first, in march order); every
+// representative with an iso value starts marching.
 __kernel void track_begin(const uint vertex_count,
                           __global const float* skinned,
                           __global float* positions,
@@ -130,10 +137,11 @@ __kernel void track_begin(const uint vertex_count,
                           __global const int* representative,
                           __global uchar* states,
                           __global float4* prev_gradients,
-                          __global float4* relax_frames) {
+                          __global float4* relax_frames,
+                          __global const int* source) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  vstore3(vload3(v, skinned), v, positions);
+  vstore3(vload3(source[v], skinned), v, positions);
   states[v] = iso_values[v] > 0.0f && representative[v] == (int)v
                   ? TRACK_MARCHING
                   : TRACK_UNTRACKED;
@@ -365,7 +373,8 @@ __kernel void track_smooth(const uint vertex_count,
   vstore3(out, v, positions_out);
 }
 
-// Seam copies take their representative's position.
+// Back to the mesh's order: vertex v takes the position at device index
+// representative[v] (its own, or its seam representative's).
 __kernel void track_copy_duplicates(const uint vertex_count,
                                     __global const int* representative,
                                     __global const float* positions_in,

@@ -63,15 +63,46 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     normals_kernel_ =
         cl::Kernel(context_->program("normals"), "vertex_normals");
 
-    iso_values_ = uploadReadOnly(*context_, mesh.iso_values, &bytes_);
-    representative_ =
-        uploadReadOnly(*context_, mesh.rings.representative, &bytes_);
+    // The device keeps the vertices in their march order (the tracked
+    // vertices first, then the others by index): the projection reads and
+    // writes its per-vertex data in sequence, and march slot k is vertex k
+    // on the device. begin() gathers the skinned positions into that order
+    // and finish() scatters the results back.
+    std::vector<int> order(mesh.march_order);
+    if (!options.march_order) std::sort(order.begin(), order.end());
+    march_count_ = static_cast<int>(order.size());
+    slot_of_.assign(vertex_count_, -1);
+    for (int k = 0; k < march_count_; ++k) slot_of_[order[k]] = k;
+    for (int v = 0; v < vertex_count_; ++v)
+      if (slot_of_[v] < 0) {
+        slot_of_[v] = static_cast<int>(order.size());
+        order.push_back(v);
+      }
+    order_ = order;
+    auto permuted = [&](const auto& by_vertex) {
+      std::remove_const_t<std::remove_reference_t<decltype(by_vertex)>> out(
+          by_vertex.size());
+      for (size_t k = 0; k < order_.size(); ++k) out[k] = by_vertex[order_[k]];
+      return out;
+    };
+    iso_values_ = uploadReadOnly(*context_, permuted(mesh.iso_values), &bytes_);
+    std::vector<int> representative(vertex_count_),
+        finish_source(vertex_count_);
+    for (int k = 0; k < vertex_count_; ++k)
+      representative[k] = slot_of_[mesh.rings.representative[order_[k]]];
+    for (int v = 0; v < vertex_count_; ++v)
+      finish_source[v] = slot_of_[mesh.rings.representative[v]];
+    representative_ = uploadReadOnly(*context_, representative, &bytes_);
+    finish_source_ = uploadReadOnly(*context_, finish_source, &bytes_);
+    begin_source_ = uploadReadOnly(*context_, order_, &bytes_);
     std::vector<uint8_t> rules(mesh.relaxation.rules.size());
-    for (size_t v = 0; v < rules.size(); ++v)
-      rules[v] = static_cast<uint8_t>(mesh.relaxation.rules[v]);
+    for (size_t k = 0; k < rules.size(); ++k)
+      rules[k] = static_cast<uint8_t>(mesh.relaxation.rules[order_[k]]);
     rules_ = uploadReadOnly(*context_, rules, &bytes_);
-    home_fields_ = uploadReadOnly(*context_, mesh.home_field, &bytes_);
-    home_margins_ = uploadReadOnly(*context_, mesh.home_margin, &bytes_);
+    home_fields_ =
+        uploadReadOnly(*context_, permuted(mesh.home_field), &bytes_);
+    home_margins_ =
+        uploadReadOnly(*context_, permuted(mesh.home_margin), &bytes_);
     const size_t fields = static_cast<size_t>(mesh.field_count);
     auto int_buffer = [&](size_t count) {
       bytes_ += std::max<size_t>(count, 1) * sizeof(int);
@@ -86,12 +117,10 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_entries_ = int_buffer(fields * fields);
     neighbour_pair_offsets_ = int_buffer(fields + 1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
-    if (options.march_order) {
-      march_order_ = uploadReadOnly(*context_, mesh.march_order, &bytes_);
-    } else {  // the same vertices by index
-      std::vector<int> by_index(mesh.march_order);
-      std::sort(by_index.begin(), by_index.end());
-      march_order_ = uploadReadOnly(*context_, by_index, &bytes_);
+    {  // march slot k is vertex k on the device
+      std::vector<int> slots(march_count_);
+      for (int k = 0; k < march_count_; ++k) slots[k] = k;
+      march_order_ = uploadReadOnly(*context_, slots, &bytes_);
     }
     if (!options.occupied_cells) {  // every cell marked: nothing skipped
       const size_t cells =
@@ -101,11 +130,26 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
           ~0u);
       every_cell_ = uploadReadOnly(*context_, every, &bytes_);
     }
-    ring_offsets_ = uploadReadOnly(*context_, mesh.rings.offsets, &bytes_);
-    ring_neighbours_ =
-        uploadReadOnly(*context_, mesh.rings.neighbours, &bytes_);
-    ring_weights_ = uploadReadOnly(*context_, mesh.relaxation.weights, &bytes_);
-    ring_lengths_ = uploadReadOnly(*context_, mesh.ring_lengths, &bytes_);
+    {  // the one-rings in device order, neighbours as device indices
+      std::vector<uint32_t> offsets(1, 0);
+      std::vector<int> neighbours;
+      std::vector<float> weights, lengths;
+      neighbours.reserve(mesh.rings.neighbours.size());
+      for (int k = 0; k < vertex_count_; ++k) {
+        const int v = order_[k];
+        for (uint32_t i = mesh.rings.offsets[v]; i < mesh.rings.offsets[v + 1];
+             ++i) {
+          neighbours.push_back(slot_of_[mesh.rings.neighbours[i]]);
+          weights.push_back(mesh.relaxation.weights[i]);
+          lengths.push_back(mesh.ring_lengths[i]);
+        }
+        offsets.push_back(static_cast<uint32_t>(neighbours.size()));
+      }
+      ring_offsets_ = uploadReadOnly(*context_, offsets, &bytes_);
+      ring_neighbours_ = uploadReadOnly(*context_, neighbours, &bytes_);
+      ring_weights_ = uploadReadOnly(*context_, weights, &bytes_);
+      ring_lengths_ = uploadReadOnly(*context_, lengths, &bytes_);
+    }
     triangles_ =
         uploadReadOnly(*context_, mesh.triangles.data(),
                        static_cast<size_t>(mesh.triangles.size()), &bytes_);
@@ -127,8 +171,8 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     relax_frames_ = rw(n * 4 * sizeof(float));
     for (auto& b : beta_) b = rw(2 * n * sizeof(float));
     std::vector<uint8_t> kinds(mesh.rings.kinds.size());
-    for (size_t v = 0; v < kinds.size(); ++v)
-      kinds[v] = static_cast<uint8_t>(mesh.rings.kinds[v]);
+    for (size_t k = 0; k < kinds.size(); ++k)
+      kinds[k] = static_cast<uint8_t>(mesh.rings.kinds[order_[k]]);
     kinds_ = uploadReadOnly(*context_, kinds, &bytes_);
     bytes_ +=
         3 * floats3 + n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
@@ -228,6 +272,8 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
     begin_.setArg(0, n);
     begin_.setArg(1, skinned_positions);
+    begin_.setArg(8, begin_source_);
+    user_order_ = false;
     begin_.setArg(2, positions_[current_]);
     begin_.setArg(3, iso_values_);
     begin_.setArg(4, representative_);
@@ -258,7 +304,7 @@ void ClSurfaceTracking::project(int steps) {
   const float min_gradient =
       diagonal_ > 0 ? options_.min_gradient / diagonal_ : options_.min_gradient;
   try {
-    const int march_count = static_cast<int>(mesh_->march_order.size());
+    const int march_count = march_count_;
     project_.setArg(0, static_cast<cl_uint>(march_count));
     project_.setArg(1, positions_[current_]);
     project_.setArg(2, iso_values_);
@@ -359,12 +405,14 @@ void ClSurfaceTracking::finish() {
   checkBegun("finish");
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
+    // Back to the mesh's order, seam copies from their representative.
     copy_duplicates_.setArg(0, n);
-    copy_duplicates_.setArg(1, representative_);
+    copy_duplicates_.setArg(1, finish_source_);
     copy_duplicates_.setArg(2, positions_[current_]);
     copy_duplicates_.setArg(3, positions_[1 - current_]);
     launch(copy_duplicates_, kNormals);
     current_ = 1 - current_;
+    user_order_ = true;
     normals_kernel_.setArg(0, n);
     normals_kernel_.setArg(1, positions_[current_]);
     normals_kernel_.setArg(2, triangles_);
@@ -411,17 +459,26 @@ void ClSurfaceTracking::setState(const Matrix3Xf& positions,
                     std::to_string(vertex_count_) + " rows");
   try {
     const cl::CommandQueue& queue = context_->queue();
+    const Matrix3Xf device_positions = toDevice(positions);
     queue.enqueueWriteBuffer(positions_[current_], CL_TRUE, 0,
-                             positions.size() * sizeof(float),
-                             positions.data());
-    queue.enqueueWriteBuffer(states_, CL_TRUE, 0, states.size(), states.data());
+                             device_positions.size() * sizeof(float),
+                             device_positions.data());
+    std::vector<TrackState> device_states(states.size());
+    for (size_t k = 0; k < states.size(); ++k)
+      device_states[k] = states[order_[k]];
+    queue.enqueueWriteBuffer(states_, CL_TRUE, 0, device_states.size(),
+                             device_states.data());
+    const Matrix4Xf device_prev = toDevice(prev_gradients);
     queue.enqueueWriteBuffer(prev_gradients_, CL_TRUE, 0,
-                             prev_gradients.size() * sizeof(float),
-                             prev_gradients.data());
-    if (relax_frames)
+                             device_prev.size() * sizeof(float),
+                             device_prev.data());
+    if (relax_frames) {
+      const Matrix4Xf device_frames = toDevice(*relax_frames);
       queue.enqueueWriteBuffer(relax_frames_, CL_TRUE, 0,
-                               relax_frames->size() * sizeof(float),
-                               relax_frames->data());
+                               device_frames.size() * sizeof(float),
+                               device_frames.data());
+    }
+    user_order_ = false;
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking::setState");
   }
@@ -441,6 +498,7 @@ void ClSurfaceTracking::readPositions(Matrix3Xf& out) {
   out.resize(vertex_count_, 3);
   readFloats(positions_[current_], out.data(), out.size() * sizeof(float),
              "readPositions");
+  if (!user_order_) out = fromDevice(out);
 }
 
 void ClSurfaceTracking::readNormals(Matrix3Xf& out) {
@@ -449,25 +507,35 @@ void ClSurfaceTracking::readNormals(Matrix3Xf& out) {
 }
 
 void ClSurfaceTracking::readStates(std::vector<TrackState>& out) {
+  std::vector<TrackState> device(vertex_count_);
+  readFloats(states_, device.data(), device.size(), "readStates");
   out.resize(vertex_count_);
-  readFloats(states_, out.data(), out.size(), "readStates");
+  for (int k = 0; k < vertex_count_; ++k) out[order_[k]] = device[k];
 }
 
 void ClSurfaceTracking::readBeta(std::vector<float>& out) {
-  out.resize(2 * static_cast<size_t>(vertex_count_));
-  readFloats(beta_[0], out.data(), out.size() * sizeof(float), "readBeta");
+  std::vector<float> device(2 * static_cast<size_t>(vertex_count_));
+  readFloats(beta_[0], device.data(), device.size() * sizeof(float),
+             "readBeta");
+  out.resize(device.size());
+  for (int k = 0; k < vertex_count_; ++k) {
+    out[2 * static_cast<size_t>(order_[k])] = device[2 * k];
+    out[2 * static_cast<size_t>(order_[k]) + 1] = device[2 * k + 1];
+  }
 }
 
 void ClSurfaceTracking::readPreviousGradients(Matrix4Xf& out) {
   out.resize(vertex_count_, 4);
   readFloats(prev_gradients_, out.data(), out.size() * sizeof(float),
              "readPreviousGradients");
+  out = fromDevice(out);
 }
 
 void ClSurfaceTracking::readRelaxFrames(Matrix4Xf& out) {
   out.resize(vertex_count_, 4);
   readFloats(relax_frames_, out.data(), out.size() * sizeof(float),
              "readRelaxFrames");
+  out = fromDevice(out);
 }
 
 int ClSurfaceTracking::contactCount() {

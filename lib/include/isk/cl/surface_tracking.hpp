@@ -8,7 +8,10 @@
 // evaluation's setPose), starts from skinned positions already on the device
 // (isk::ClSkinning's buffers) and leaves its results in positionsBuffer() and
 // normalsBuffer(). The per-vertex state (marching, converged, contact, lost,
-// untracked) and the previous gradients live on the device between stages.
+// untracked) and the previous gradients live on the device between stages,
+// in the device's vertex order (the tracked vertices in march order first:
+// the projection reads them in sequence); the reads and setState() take
+// and give the mesh's order, and finish() leaves the results in it.
 #pragma once
 
 #include <memory>
@@ -114,6 +117,28 @@ class ClSurfaceTracking {
       neighbour_entries_, neighbour_pair_offsets_, neighbour_pairs_,
       ring_offsets_, ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
       normal_offsets_, normal_triangles_;
+  // The device's vertex order (see the constructor): order_[k] is the
+  // mesh's vertex at device index k, slot_of_ its inverse; the first
+  // march_count_ are the tracked vertices in march order.
+  std::vector<int> order_, slot_of_;
+  int march_count_ = 0;
+  cl::Buffer begin_source_, finish_source_;  // order_; slot of representative
+  bool user_order_ = false;  // positions_[current_] in the mesh's order
+  // Rows in the mesh's order <-> rows in the device's order.
+  template <typename Matrix>
+  Matrix toDevice(const Matrix& by_vertex) const {
+    Matrix out(by_vertex.rows(), by_vertex.cols());
+    for (Eigen::Index k = 0; k < out.rows(); ++k)
+      out.row(k) = by_vertex.row(order_[k]);
+    return out;
+  }
+  template <typename Matrix>
+  Matrix fromDevice(const Matrix& by_device) const {
+    Matrix out(by_device.rows(), by_device.cols());
+    for (Eigen::Index k = 0; k < out.rows(); ++k)
+      out.row(order_[k]) = by_device.row(k);
+    return out;
+  }
   cl::Buffer positions_[2];
   int current_ = 0;
   cl::Buffer states_, prev_gradients_, relax_frames_, beta_[2], normals_;
