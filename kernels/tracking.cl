@@ -160,13 +160,11 @@ __kernel void track_project(const uint march_count, __global float* positions,
                             const float4 step_params, const float min_gradient,
                             ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
                             ISK_COMPOSITION_PARAMS,
-                            __global float4* relax_frames,
-                            __global const int* march_order) {
-  // Work-item k marches vertex march_order[k] (tracked vertices only, by
-  // home field and rest locality).
-  const uint k = get_global_id(0);
-  if (k >= march_count) return;
-  const uint v = (uint)march_order[k];
+                            __global float4* relax_frames) {
+  // Work-item v marches vertex v: the device's order puts the tracked
+  // vertices first (march_count of them), by home field and rest locality.
+  const uint v = get_global_id(0);
+  if (v >= march_count) return;
   uchar state = states[v];
   if (state != TRACK_MARCHING) return;  // stopped: no more work this frame
   float3 x = vload3(v, positions);

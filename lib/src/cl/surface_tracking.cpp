@@ -117,11 +117,6 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_entries_ = int_buffer(fields * fields);
     neighbour_pair_offsets_ = int_buffer(fields + 1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
-    {  // march slot k is vertex k on the device
-      std::vector<int> slots(march_count_);
-      for (int k = 0; k < march_count_; ++k) slots[k] = k;
-      march_order_ = uploadReadOnly(*context_, slots, &bytes_);
-    }
     if (!options.occupied_cells) {  // every cell marked: nothing skipped
       const size_t cells =
           static_cast<size_t>(fields_->layout().resolution) - 1;
@@ -304,8 +299,7 @@ void ClSurfaceTracking::project(int steps) {
   const float min_gradient =
       diagonal_ > 0 ? options_.min_gradient / diagonal_ : options_.min_gradient;
   try {
-    const int march_count = march_count_;
-    project_.setArg(0, static_cast<cl_uint>(march_count));
+    project_.setArg(0, static_cast<cl_uint>(march_count_));
     project_.setArg(1, positions_[current_]);
     project_.setArg(2, iso_values_);
     project_.setArg(3, states_);
@@ -319,8 +313,7 @@ void ClSurfaceTracking::project(int steps) {
     if (!options_.occupied_cells) project_.setArg(20, every_cell_);
     fields_->setCompositionArgs(project_, 21);
     project_.setArg(27, relax_frames_);
-    project_.setArg(28, march_order_);
-    launch(project_, kProjection, march_count);
+    launch(project_, kProjection, march_count_);
   } catch (const cl::Error& e) {
     throwClError(
         e, "ClSurfaceTracking::project on " + context_->info().describe());

@@ -112,10 +112,10 @@ class ClSurfaceTracking {
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
   cl::Buffer every_cell_;  // options.occupied_cells off: all bits set
-  cl::Buffer iso_values_, representative_, march_order_, rules_, kinds_,
-      home_fields_, home_margins_, partners_, neighbour_offsets_,
-      neighbour_entries_, neighbour_pair_offsets_, neighbour_pairs_,
-      ring_offsets_, ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
+  cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
+      home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
+      neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
+      ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
       normal_offsets_, normal_triangles_;
   // The device's vertex order (see the constructor): order_[k] is the
   // mesh's vertex at device index k, slot_of_ its inverse; the first
