@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <string>
+#include <type_traits>
 
 #include "isk/error.hpp"
 #include "stopwatch.hpp"
@@ -68,17 +69,16 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     // writes its per-vertex data in sequence, and march slot k is vertex k
     // on the device. begin() gathers the skinned positions into that order
     // and finish() scatters the results back.
-    std::vector<int> order(mesh.march_order);
-    if (!options.march_order) std::sort(order.begin(), order.end());
-    march_count_ = static_cast<int>(order.size());
-    slot_of_.assign(vertex_count_, -1);
-    for (int k = 0; k < march_count_; ++k) slot_of_[order[k]] = k;
+    order_ = mesh.march_order;
+    if (!options.march_order) std::sort(order_.begin(), order_.end());
+    march_count_ = static_cast<int>(order_.size());
+    std::vector<int> slot_of(vertex_count_, -1);  // inverse of order_
+    for (int k = 0; k < march_count_; ++k) slot_of[order_[k]] = k;
     for (int v = 0; v < vertex_count_; ++v)
-      if (slot_of_[v] < 0) {
-        slot_of_[v] = static_cast<int>(order.size());
-        order.push_back(v);
+      if (slot_of[v] < 0) {
+        slot_of[v] = static_cast<int>(order_.size());
+        order_.push_back(v);
       }
-    order_ = order;
     auto permuted = [&](const auto& by_vertex) {
       std::remove_const_t<std::remove_reference_t<decltype(by_vertex)>> out(
           by_vertex.size());
@@ -89,9 +89,9 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     std::vector<int> representative(vertex_count_),
         finish_source(vertex_count_);
     for (int k = 0; k < vertex_count_; ++k)
-      representative[k] = slot_of_[mesh.rings.representative[order_[k]]];
+      representative[k] = slot_of[mesh.rings.representative[order_[k]]];
     for (int v = 0; v < vertex_count_; ++v)
-      finish_source[v] = slot_of_[mesh.rings.representative[v]];
+      finish_source[v] = slot_of[mesh.rings.representative[v]];
     representative_ = uploadReadOnly(*context_, representative, &bytes_);
     finish_source_ = uploadReadOnly(*context_, finish_source, &bytes_);
     begin_source_ = uploadReadOnly(*context_, order_, &bytes_);
@@ -134,7 +134,7 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
         const int v = order_[k];
         for (uint32_t i = mesh.rings.offsets[v]; i < mesh.rings.offsets[v + 1];
              ++i) {
-          neighbours.push_back(slot_of_[mesh.rings.neighbours[i]]);
+          neighbours.push_back(slot_of[mesh.rings.neighbours[i]]);
           weights.push_back(mesh.relaxation.weights[i]);
           lengths.push_back(mesh.ring_lengths[i]);
         }
@@ -267,14 +267,14 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
     begin_.setArg(0, n);
     begin_.setArg(1, skinned_positions);
-    begin_.setArg(8, begin_source_);
-    user_order_ = false;
     begin_.setArg(2, positions_[current_]);
     begin_.setArg(3, iso_values_);
     begin_.setArg(4, representative_);
     begin_.setArg(5, states_);
     begin_.setArg(6, prev_gradients_);
     begin_.setArg(7, relax_frames_);
+    begin_.setArg(8, begin_source_);
+    user_order_ = false;
     launch(begin_, kProjection);
     begun_ = true;
   } catch (const cl::Error& e) {

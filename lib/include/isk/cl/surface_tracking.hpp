@@ -118,9 +118,9 @@ class ClSurfaceTracking {
       ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
       normal_offsets_, normal_triangles_;
   // The device's vertex order (see the constructor): order_[k] is the
-  // mesh's vertex at device index k, slot_of_ its inverse; the first
-  // march_count_ are the tracked vertices in march order.
-  std::vector<int> order_, slot_of_;
+  // mesh's vertex at device index k; the first march_count_ are the
+  // tracked vertices in march order.
+  std::vector<int> order_;
   int march_count_ = 0;
   cl::Buffer begin_source_, finish_source_;  // order_; slot of representative
   bool user_order_ = false;  // positions_[current_] in the mesh's order
