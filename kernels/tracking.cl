@@ -62,8 +62,9 @@
 // neighbourhood (boxes that meet it) can be non-zero, so only they are
 // sampled (same result, same order, as sampling every field).
 ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
-                       ISK_TRACKING_PARAMS, const float3 x, const int home,
-                       float4* home_out, float4* other_out) {
+                                  ISK_TRACKING_PARAMS, const float3 x,
+                                  const int home, float4* home_out,
+                                  float4* other_out) {
   float4 best = (float4)(0.0f);
   float4 h = (float4)(0.0f);
   float4 other = (float4)(0.0f);
