@@ -181,7 +181,13 @@ void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
 
 // Levers/<model>/<lever>:<d>: the implicit frame with one speed switch of
 // SurfaceTrackingOptions off (the result is the same, tests check it):
-// 'all' has every switch on, as Implicit/ runs it.
+// 'all' has every switch on, as Implicit/ runs it. Each iteration runs the
+// same pose on a second skinner with every switch on, the two frames in
+// turn (which goes first alternates): on a shared machine whose speed
+// drifts by tens of percent within minutes, only frames timed side by side
+// give a ratio that holds. Counters: frame_ms and all_frame_ms (host wall
+// time of one frame with its read-back, means over the iterations) and
+// frame_over_all, their ratio; the stage counters are the lever's frames'.
 void implicitLever(benchmark::State& state, const Case& c, int device,
                    const std::string& lever) {
   ImplicitSkinnerOptions options;
@@ -189,7 +195,44 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
     options.tracking.field_neighbourhoods = false;
   if (lever == "no-march-order") options.tracking.march_order = false;
   if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
-  implicitOpenClWith(state, c, device, options);
+  const Rig& rig = c.rig();
+  const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
+  ImplicitSkinner switched(context(device), rig, fields, options);
+  ImplicitSkinner all(context(device), rig, fields, ImplicitSkinnerOptions());
+  switched.run(c.pose(rig, 0));  // PoCL compiles at the first launch
+  all.run(c.pose(rig, 0));
+  Matrix3Xf positions, normals;
+  StageSums times;
+  CountSums counts;
+  std::vector<TrackState> states;
+  double switched_ms = 0, all_ms = 0;
+  int64_t frame = 0;
+  for (auto _ : state) {
+    const TransformList pose = c.pose(rig, frame);
+    for (int k = 0; k < 2; ++k) {
+      const bool lever_frame = (k == 0) == (frame % 2 == 0);
+      ImplicitSkinner& skinner = lever_frame ? switched : all;
+      const auto start = std::chrono::steady_clock::now();
+      skinner.run(pose);
+      skinner.readPositions(positions);
+      skinner.readNormals(normals);
+      benchmark::DoNotOptimize(positions.data());
+      benchmark::DoNotOptimize(normals.data());
+      (lever_frame ? switched_ms : all_ms) += msSince(start);
+      if (lever_frame) times.add(skinner.lastTimes());
+    }
+    ++frame;
+    state.PauseTiming();
+    switched.tracking().readStates(states);
+    counts.add(countStates(states), switched.vertexCount());
+    state.ResumeTiming();
+  }
+  setCounters(state, rig, frame, times, counts);
+  const double n = static_cast<double>(std::max<int64_t>(frame, 1));
+  state.counters["frame_ms"] = switched_ms / n;
+  state.counters["all_frame_ms"] = all_ms / n;
+  state.counters["frame_over_all"] = all_ms > 0 ? switched_ms / all_ms : 0;
+  state.SetLabel(devices()[device].describe());
 }
 
 void dqsOpenCl(benchmark::State& state, const Case& c, int device) {

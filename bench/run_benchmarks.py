@@ -580,8 +580,13 @@ def levers_section(results):
               "nodes are all zero skips the cell's loads, one bit per cell "
               "telling which; `isk::occupiedCells`). "
               "None changes the result (tests compare the frames bit for "
-              "bit); 'all' has every switch on. 'frame / all' is the frame's "
-              "time over the 'all' frame's, measured in the same run.", ""]
+              "bit); 'all' has every switch on. Each benchmark times its "
+              "frames side by side with the same poses on a second skinner "
+              "with every switch on, the two in turn: 'frame / all' is the "
+              "ratio of those interleaved frames (on a shared machine whose "
+              "speed drifts, benchmarks run one after the other can be tens "
+              "of percent apart). ms/frame is the switched frame's wall "
+              "time with its read-back.", ""]
     models = {}
     for key, run in runs.items():
         if len(key) == 3:
@@ -597,10 +602,17 @@ def levers_section(results):
                 run = models[model].get(f"{lever}:{d}")
                 if not run:
                     continue
-                frame = to_ms(run)
+                # Interleaved runs carry their own frame and ratio; older
+                # JSON (one benchmark after the other) only the run's time.
+                frame = run.get("frame_ms") or to_ms(run)
+                if run.get("frame_over_all"):
+                    versus = ratio(run["frame_over_all"])
+                elif base:
+                    versus = ratio(frame / to_ms(base))
+                else:
+                    versus = "n/a"
                 rows.append([model, lever, ms(frame), fps(fps_of(frame)),
-                             ms(run.get("projection_ms")),
-                             ratio(frame / to_ms(base)) if base else "n/a"])
+                             ms(run.get("projection_ms")), versus])
         if rows:
             lines += [f"### {results.device_name(d)} (OpenCL device {d})",
                       ""]

@@ -64,6 +64,24 @@ class Render(unittest.TestCase):
         self.assertTrue(rows[0].endswith("| 1.25x |"), rows[0])
         self.assertNotIn("nan", text.lower())
 
+    def test_levers_interleaved_use_their_own_ratio(self):
+        # Interleaved runs: two frames per iteration, their own counters.
+        data = document([
+            run("Levers/human-addon/all:0/min_time:2.000", 30.0,
+                projection_ms=8.0, vertices=7798, frame_ms=15.0,
+                all_frame_ms=15.0, frame_over_all=1.0),
+            run("Levers/human-addon/no-march-order:0/min_time:2.000", 20.0,
+                projection_ms=9.0, vertices=7798, frame_ms=11.0,
+                all_frame_ms=10.0, frame_over_all=1.1),
+        ])
+        text = run_benchmarks.render(data, "cmd")
+        rows = [l for l in text.splitlines()
+                if l.startswith("| human-addon | no-march-order")]
+        self.assertEqual(len(rows), 1, text)
+        self.assertIn("| 11.00 |", rows[0])
+        self.assertTrue(rows[0].endswith("| 1.10x |"), rows[0])
+        self.assertNotIn("nan", text.lower())
+
     def test_targets_from_the_figures(self):
         data = document([
             implicit("human-addon", "opencl:0", 10.0, 7798),   # 100 fps
