@@ -142,8 +142,8 @@ void setCounters(benchmark::State& state, const Rig& rig, int64_t frames,
                                              benchmark::Counter::kIsRate);
 }
 
-void implicitOpenClWith(benchmark::State& state, const Case& c, int device,
-                        const ImplicitSkinnerOptions& options) {
+void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
+  const ImplicitSkinnerOptions options;
   const Rig& rig = c.rig();
   const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
   auto start = std::chrono::steady_clock::now();
@@ -173,10 +173,6 @@ void implicitOpenClWith(benchmark::State& state, const Case& c, int device,
   state.counters["setup_ms"] = setup_ms;
   state.counters["first_frame_ms"] = first_frame_ms;
   state.SetLabel(devices()[device].describe());
-}
-
-void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
-  implicitOpenClWith(state, c, device, ImplicitSkinnerOptions());
 }
 
 // Levers/<model>/<lever>:<d>: the implicit frame with one speed switch of
