@@ -193,7 +193,13 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
   const Rig& rig = c.rig();
   const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
-  ImplicitSkinner switched(context(device), rig, fields, options);
+  std::shared_ptr<const ImplicitFields> switched_fields = fields;
+  if (lever == "half-grids") {  // the same fields, rounded to halves
+    auto half = std::make_shared<ImplicitFields>(*fields);
+    useHalfPrecisionGrids(*half, rig);
+    switched_fields = half;
+  }
+  ImplicitSkinner switched(context(device), rig, switched_fields, options);
   ImplicitSkinner all(context(device), rig, fields, ImplicitSkinnerOptions());
   switched.run(c.pose(rig, 0));  // PoCL compiles at the first launch
   all.run(c.pose(rig, 0));
@@ -313,8 +319,8 @@ void registerImplicitBenchmarks() {
          model.name != "CesiumMan-x64"))
       continue;
     for (const ClDeviceInfo& device : devices())
-      for (const char* lever :
-           {"all", "no-neighbourhoods", "no-march-order", "no-occupied-cells"})
+      for (const char* lever : {"all", "no-neighbourhoods", "no-march-order",
+                                "no-occupied-cells", "half-grids"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

@@ -561,7 +561,8 @@ def implicit_section(results):
     return lines
 
 
-LEVERS = ("all", "no-neighbourhoods", "no-march-order", "no-occupied-cells")
+LEVERS = ("all", "no-neighbourhoods", "no-march-order", "no-occupied-cells",
+          "half-grids")
 
 
 def levers_section(results):
@@ -580,7 +581,11 @@ def levers_section(results):
               "nodes are all zero skips the cell's loads, one bit per cell "
               "telling which; `isk::occupiedCells`). "
               "None changes the result (tests compare the frames bit for "
-              "bit); 'all' has every switch on. Each benchmark times its "
+              "bit); 'all' has every switch on. 'half-grids' is the other "
+              "way round: every switch on, and the grids rounded to half "
+              "precision (`isk::useHalfPrecisionGrids`; stored as halves "
+              "on the device), which moves the result slightly (README, "
+              "Benchmarks). Each benchmark times its "
               "frames side by side with the same poses on a second skinner "
               "with every switch on, the two in turn: 'frame / all' is the "
               "ratio of those interleaved frames (on a shared machine whose "

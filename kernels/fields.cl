@@ -16,7 +16,10 @@
 //      too coarse to march back to an iso value;
 //   0: a __global const float4* buffer, field i at offset i * N^3, node
 //      (x, y, z) at x + N * (y + N * z), interpolated trilinearly here exactly
-//      as FieldGrid::sampleLocal does it.
+//      as FieldGrid::sampleLocal does it. With ISK_FIELDS_HALF=1 (grids
+//      rounded to half precision, isk::roundGridsToHalf) the buffer holds
+//      4 halves per node instead, same layout, read by vload_half4 (exact)
+//      and interpolated in float as the reference does.
 // A node's float4 is (value, gradient x y z), gradient in the bone frame.
 // field_cells: per field ceil((N-1)^3 / 32) uint words, one bit per grid
 // cell (isk::occupiedCells): clear when the cell's 8 nodes are all zero, so
@@ -103,7 +106,14 @@ ISK_INLINE float4 trilinear_texels(read_only image3d_t image, const int4 origin,
   return y0 + t.z * (y1 - y0);
 }
 #else
+#ifndef ISK_FIELDS_HALF
+#define ISK_FIELDS_HALF 0
+#endif
+#if ISK_FIELDS_HALF
+#define ISK_FIELD_DATA_T __global const half*
+#else
 #define ISK_FIELD_DATA_T __global const float4*
+#endif
 #define ISK_OPERATOR_DATA_T __global const float4*
 #endif
 
@@ -141,6 +151,36 @@ ISK_INLINE float4 trilinear_nodes(__global const float4* grid, const int n,
   const float4 y1 = x01 + t.y * (x11 - x01);
   return y0 + t.z * (y1 - y0);
 }
+
+#if ISK_FIELDS_HALF
+// trilinear_nodes over a grid of halves (4 per node); `first` is the index,
+// in nodes, of its node (0, 0, 0).
+ISK_INLINE float4 trilinear_half_nodes(__global const half* data,
+                                       const size_t first, const int n,
+                                       const float3 u) {
+  const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));
+  const float3 t = u - convert_float3(i);
+  const size_t dy = (size_t)n;
+  const size_t dz = (size_t)n * (size_t)n;
+  const size_t b =
+      first + ((size_t)i.x + dy * (size_t)i.y + dz * (size_t)i.z);
+  const float4 c000 = vload_half4(b, data);
+  const float4 c100 = vload_half4(b + 1, data);
+  const float4 c010 = vload_half4(b + dy, data);
+  const float4 c110 = vload_half4(b + dy + 1, data);
+  const float4 c001 = vload_half4(b + dz, data);
+  const float4 c101 = vload_half4(b + dz + 1, data);
+  const float4 c011 = vload_half4(b + dy + dz, data);
+  const float4 c111 = vload_half4(b + dy + dz + 1, data);
+  const float4 x00 = c000 + t.x * (c100 - c000);
+  const float4 x10 = c010 + t.x * (c110 - c010);
+  const float4 x01 = c001 + t.x * (c101 - c001);
+  const float4 x11 = c011 + t.x * (c111 - c011);
+  const float4 y0 = x00 + t.y * (x10 - x00);
+  const float4 y1 = x01 + t.y * (x11 - x01);
+  return y0 + t.z * (y1 - y0);
+}
+#endif
 #endif
 
 // Whether node coordinates u lie in the grid (its support box).
@@ -173,8 +213,13 @@ ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
                           resolution, u);
 #else
   const size_t n = (size_t)resolution;
+#if ISK_FIELDS_HALF
+  return trilinear_half_nodes(field_data, (size_t)field * n * n * n,
+                              resolution, u);
+#else
   return trilinear_nodes(field_data + (size_t)field * n * n * n, resolution,
                          u);
+#endif
 #endif
 }
 

@@ -229,10 +229,19 @@ std::optional<Worst> compare(const FieldGridSet& fields,
 
 // Both storages against the reference, every pose of the rig, for the
 // union of all fields and for the blend and the bulge at every joint
-// (operator tables, controllers, pairs).
-void expectDeviceMatchesReference(const std::string& name) {
+// (operator tables, controllers, pairs); kHalf: on the grids rounded to
+// half precision, which the device stores as halves (buffer, or a
+// CL_HALF_FLOAT image where the device has them) and samples exactly.
+void expectDeviceMatchesReference(
+    const std::string& name, GridPrecision precision = GridPrecision::kFloat) {
   const Rig& rig = rigOf(name);
-  const FieldGridSet& fields = fieldsOf(name);
+  FieldGridSet half;
+  if (precision == GridPrecision::kHalf) {
+    half = fieldsOf(name);
+    roundGridsToHalf(half);
+  }
+  const FieldGridSet& fields =
+      precision == GridPrecision::kHalf ? half : fieldsOf(name);
   ASSERT_GT(fields.fieldCount(), 0) << rigLabel(name) << " has no field";
   auto context = test::sharedContext();
   for (const CompositionOperator op :
@@ -249,6 +258,22 @@ void expectDeviceMatchesReference(const std::string& name) {
       ClFieldEvaluation device(context, fields, rig.skeleton.jointCount(),
                                storage, used);
       ASSERT_EQ(device.storage(), storage) << device.storageReason();
+      if (precision == GridPrecision::kHalf) {
+        const bool halves = storage == FieldStorage::kBuffer ||
+                            device.storageReason().find(
+                                "CL_HALF_FLOAT image") != std::string::npos;
+        const size_t float_bytes =
+            storage == FieldStorage::kBuffer
+                ? fields.bytes()
+                : 16 * static_cast<size_t>(device.atlasTiles()[0]) *
+                      device.atlasTiles()[1] * device.atlasTiles()[2] *
+                      fields.resolution * fields.resolution * fields.resolution;
+        EXPECT_EQ(device.fieldBytes(), halves ? float_bytes / 2 : float_bytes)
+            << device.storageReason();
+        EXPECT_NE(device.storageReason().find("half-precision"),
+                  std::string::npos)
+            << device.storageReason();
+      }
       EXPECT_EQ(device.pairCount(),
                 static_cast<int>(composition.blended_pairs.size()) *
                     (used != nullptr));
@@ -299,6 +324,15 @@ TEST_P(ClFieldEvaluationOnRig, DeviceMatchesReferenceForBothStorages) {
     GTEST_SKIP() << test::missingAssetsMessage("the field comparison on " +
                                                name);
   expectDeviceMatchesReference(name);
+}
+
+TEST_P(ClFieldEvaluationOnRig,
+       HalfPrecisionGridsMatchReferenceForBothStorages) {
+  const std::string& name = GetParam();
+  if (name.find('.') != std::string::npos && !test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage(
+        "the half-precision field comparison on " + name);
+  expectDeviceMatchesReference(name, GridPrecision::kHalf);
 }
 
 std::vector<std::string> rigNames() {

@@ -12,6 +12,7 @@
 #include <random>
 
 #include "isk/error.hpp"
+#include "isk/field_evaluation.hpp"
 #include "isk/pose.hpp"
 #include "isk/procedural.hpp"
 #include "test_support.hpp"
@@ -603,6 +604,102 @@ TEST(ImplicitFields, ResolutionIsAParameter) {
   }
   options.grid_resolution = 1;
   EXPECT_THROW(buildImplicitFields(rigNamed("cylinder"), options), Error);
+}
+
+// --- half-precision grids ---------------------------------------------------
+
+// Every node is the nearest half (within half an ulp of half precision,
+// 2^-11 relative, or 2^-25 absolute below half's normal range), rounding
+// twice changes nothing, and the layout is kept.
+TEST(HalfPrecisionGrids, RoundToTheNearestHalf) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const FieldGridSet& original = implicitFieldsOf(name).grids;
+    ASSERT_EQ(original.precision, GridPrecision::kFloat);
+    FieldGridSet rounded = original;
+    roundGridsToHalf(rounded);
+    EXPECT_EQ(rounded.precision, GridPrecision::kHalf);
+    ASSERT_EQ(rounded.fieldCount(), original.fieldCount());
+    size_t changed = 0;
+    for (int f = 0; f < original.fieldCount(); ++f) {
+      const std::vector<float>& a = original.grids[f].nodes;
+      const std::vector<float>& b = rounded.grids[f].nodes;
+      ASSERT_EQ(a.size(), b.size());
+      EXPECT_EQ(rounded.grids[f].joint, original.grids[f].joint);
+      for (size_t i = 0; i < a.size(); ++i) {
+        ASSERT_LE(
+            std::fabs(b[i] - a[i]),
+            std::max(std::ldexp(std::fabs(a[i]), -11), std::ldexp(1.f, -25)))
+            << "field " << f << ", float " << i << ": " << a[i] << " -> "
+            << b[i];
+        changed += b[i] != a[i];
+      }
+    }
+    EXPECT_GT(changed, 0u);  // floats were rounded
+    FieldGridSet twice = rounded;
+    roundGridsToHalf(twice);
+    for (int f = 0; f < rounded.fieldCount(); ++f)
+      ASSERT_EQ(twice.grids[f].nodes, rounded.grids[f].nodes) << "field " << f;
+  }
+}
+
+TEST(HalfPrecisionGrids, OutOfRangeIsAClearErrorAndChangesNothing) {
+  FieldGridSet grids = implicitFieldsOf("arm").grids;
+  FieldGrid& grid = grids.grids[1];
+  const int n = grid.resolution;
+  grid.nodes[4 * (2 + n * (3 + n * 4)) + 1] = 1e5f;  // gradient x at (2,3,4)
+  const FieldGridSet before = grids;
+  try {
+    roundGridsToHalf(grids);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("joint " + std::to_string(grid.joint)),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("(2, 3, 4)"), std::string::npos) << message;
+    EXPECT_NE(message.find("65504"), std::string::npos) << message;
+  }
+  EXPECT_EQ(grids.precision, GridPrecision::kFloat);
+  for (int f = 0; f < grids.fieldCount(); ++f)
+    ASSERT_EQ(grids.grids[f].nodes, before.grids[f].nodes) << "field " << f;
+}
+
+// The option of buildImplicitFields and useHalfPrecisionGrids on float
+// fields give the same grids and iso values; the iso values are the rounded
+// grids' own (the rest pose stays on them) and differ from the float ones.
+TEST(HalfPrecisionGrids, BuildOptionEqualsConvertingBuiltFields) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = rigNamed(name);
+    ImplicitFieldsOptions options;
+    options.grid_precision = GridPrecision::kHalf;
+    const ImplicitFields built = buildImplicitFields(rig, options);
+    ImplicitFields converted = implicitFieldsOf(name);
+    useHalfPrecisionGrids(converted, rig);
+    EXPECT_EQ(built.grids.precision, GridPrecision::kHalf);
+    EXPECT_EQ(converted.grids.precision, GridPrecision::kHalf);
+    ASSERT_EQ(built.grids.fieldCount(), converted.grids.fieldCount());
+    for (int f = 0; f < built.grids.fieldCount(); ++f)
+      ASSERT_EQ(built.grids.grids[f].nodes, converted.grids.grids[f].nodes)
+          << "field " << f;
+    EXPECT_EQ(built.iso_values, converted.iso_values);
+    EXPECT_EQ(built.outside_vertices, converted.outside_vertices);
+    EXPECT_EQ(converted.iso_values,
+              computeIsoValues(converted.grids, rig.mesh.positions,
+                               &converted.composition));
+    EXPECT_NE(converted.iso_values, implicitFieldsOf(name).iso_values);
+    // Converting again changes nothing.
+    const std::vector<float> iso = converted.iso_values;
+    useHalfPrecisionGrids(converted, rig);
+    EXPECT_EQ(converted.iso_values, iso);
+  }
+  ImplicitFields fields = implicitFieldsOf("arm");
+  EXPECT_THROW(useHalfPrecisionGrids(fields, rigNamed("cylinder")), Error);
+  ImplicitFieldsOptions bad;
+  bad.grid_precision = static_cast<GridPrecision>(7);
+  EXPECT_THROW(buildImplicitFields(rigNamed("arm"), bad), Error);
 }
 
 bool hasWarning(const ImplicitFields& fields, const std::string& a,

@@ -302,6 +302,38 @@ TEST(IskSkinTest, TrackingOptionsAreValidatedAndChangeTheResult) {
       << warned.output;
 }
 
+// --grid-precision half: the frames move a little from the float ones,
+// the iso drift stays as small; a bad value is refused by name.
+TEST(IskSkinTest, HalfPrecisionGridsAreAnOption) {
+  ScopedTempDir float_dir, half_dir;
+  const nlohmann::json full = runImplicit({}, float_dir);
+  const nlohmann::json half =
+      runImplicit({"--grid-precision", "half"}, half_dir);
+  ASSERT_TRUE(full.is_object() && half.is_object());
+  const double full_drift = full["implicit"]["iso_drift"]["mean"].get<double>();
+  const double half_drift = half["implicit"]["iso_drift"]["mean"].get<double>();
+  EXPECT_LT(half_drift, 2 * full_drift + 1e-3);
+  bool moved = false;
+  for (const std::string& name : frameFiles(half_dir.path() / "frames")) {
+    const Matrix3Xf p =
+        readObjPositions((float_dir.path() / "frames" / name).string());
+    const Matrix3Xf q =
+        readObjPositions((half_dir.path() / "frames" / name).string());
+    ASSERT_EQ(p.rows(), q.rows()) << name;
+    const test::RowMismatch worst = test::largestRowDistance(p, q);
+    moved = moved || worst.distance > 0;
+    // The cylinder's diagonal is about 8.5.
+    EXPECT_LT(worst.distance, 0.05) << name << ": vertex " << worst.row;
+  }
+  EXPECT_TRUE(moved) << "half-precision grids changed no frame";
+  const std::vector<std::string> bad = {
+      "builtin:cylinder", "--method", "implicit", "--grid-precision", "double"};
+  const RunOutput run = runIskSkin(bad);
+  EXPECT_NE(run.exit_code, 0) << describe(bad, run);
+  EXPECT_NE(run.output.find("--grid-precision"), std::string::npos)
+      << run.output;
+}
+
 TEST(IskSkinTest, BadInputsExitNonZeroWithAMessage) {
   ScopedTempDir dir;
   const std::string garbage = dir / "garbage.dae";

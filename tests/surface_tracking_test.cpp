@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <random>
 #include <string>
@@ -993,6 +994,92 @@ TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnAssets) {
     SCOPED_TRACE(name);
     const Rig& rig = test::rigNamed(name);
     checkSpeedSwitches(rig, sharedFields(name), clipPoses(rig, 3).back());
+  }
+}
+
+// --- half-precision grids ---------------------------------------------------
+
+// The fields of test_support turned to half precision (useHalfPrecisionGrids),
+// once per rig.
+std::shared_ptr<const ImplicitFields> halfFields(const std::string& name) {
+  static std::map<std::string, std::shared_ptr<const ImplicitFields>> cache;
+  std::shared_ptr<const ImplicitFields>& fields = cache[name];
+  if (!fields) {
+    auto half = std::make_shared<ImplicitFields>(test::implicitFieldsOf(name));
+    useHalfPrecisionGrids(*half, test::rigNamed(name));
+    fields = half;
+  }
+  return fields;
+}
+
+// The device stores halves (half the bytes of the field data) and its
+// frames match the reference's on the same rounded grids, as float grids
+// do; the bind pose comes back unchanged.
+TEST(HalfPrecisionGrids, OpenClFramesMatchTheReferenceOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkRestPose(rig, halfFields(name));
+    checkFrames(rig, halfFields(name), 6);
+  }
+}
+
+TEST(HalfPrecisionGrids, OpenClFramesMatchTheReferenceOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("half-precision frames");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    checkFrames(test::rigNamed(name), halfFields(name), 4);
+  }
+}
+
+// Half against float grids, OpenCL frames of a clip: the mean distance
+// within 2e-4 of the diagonal, and at most 1% of the vertices beyond 1e-3
+// of it (a vertex whose stop test sits on its threshold may stop a step
+// earlier or later; measured on the assets: mean at most 1.4e-4, at most
+// 0.3% beyond).
+void checkHalfNearFloat(const std::string& name, int frames) {
+  const Rig& rig = test::rigNamed(name);
+  const float diagonal = rig.boundingBoxDiagonal();
+  ImplicitSkinner full(test::sharedContext(), rig, sharedFields(name));
+  ImplicitSkinner half(test::sharedContext(), rig, halfFields(name));
+  Matrix3Xf a, b;
+  double sum = 0, count = 0, beyond = 0;
+  float worst = 0;
+  for (const TransformList& pose : clipPoses(rig, frames)) {
+    full.run(pose);
+    half.run(pose);
+    full.readPositions(a);
+    half.readPositions(b);
+    ASSERT_TRUE(b.allFinite());
+    const Eigen::VectorXf d = (a - b).rowwise().norm();
+    worst = std::max(worst, d.maxCoeff());
+    beyond += (d.array() > 1e-3f * diagonal).count();
+    sum += d.sum();
+    count += a.rows();
+  }
+  EXPECT_LE(sum / count, 2e-4 * diagonal);
+  EXPECT_LE(beyond, 0.01 * count);
+  std::printf(
+      "[half] %s: distance to the float frames: mean %.3g, largest "
+      "%.3g (of the diagonal), %.3g%% of the vertices beyond 1e-3\n",
+      name.c_str(), sum / count / diagonal, worst / diagonal,
+      100 * beyond / count);
+}
+
+TEST(HalfPrecisionGrids, FramesStayNearTheFloatGridsOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    checkHalfNearFloat(name, 6);
+  }
+}
+
+TEST(HalfPrecisionGrids, FramesStayNearTheFloatGridsOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("half against float frames");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    checkHalfNearFloat(name, 4);
   }
 }
 

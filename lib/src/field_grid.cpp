@@ -1,7 +1,9 @@
 #include "isk/field_grid.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "isk/error.hpp"
 #include "trilinear.hpp"
@@ -121,6 +123,44 @@ FieldGrid bakeField(const BoneField& field, int resolution) {
     }
   }
   return grid;
+}
+
+const char* gridPrecisionName(GridPrecision precision) {
+  switch (precision) {
+    case GridPrecision::kFloat:
+      return "float";
+    case GridPrecision::kHalf:
+      return "half";
+  }
+  return "unknown";
+}
+
+void roundGridsToHalf(FieldGridSet& grids) {
+  // Checked first, so that a refused set is left as it was.
+  for (const FieldGrid& g : grids.grids) {
+    for (size_t i = 0; i < g.nodes.size(); ++i) {
+      const float x = g.nodes[i];
+      if (std::isfinite(x) &&
+          !std::isfinite(static_cast<float>(Eigen::half(x)))) {
+        const size_t node = i / 4;
+        const size_t n = static_cast<size_t>(std::max(g.resolution, 1));
+        throw Error(
+            ErrorCode::kInvalidArgument,
+            "roundGridsToHalf: the field of joint " + std::to_string(g.joint) +
+                " has " +
+                (i % 4 == 0 ? std::string("value ") : "gradient component ") +
+                std::to_string(x) + " at node (" + std::to_string(node % n) +
+                ", " + std::to_string(node / n % n) + ", " +
+                std::to_string(node / (n * n)) +
+                "), beyond half precision's range (65504): the "
+                "model's units are too small for half-precision "
+                "grids; keep them in float");
+      }
+    }
+  }
+  for (FieldGrid& g : grids.grids)
+    for (float& x : g.nodes) x = static_cast<float>(Eigen::half(x));
+  grids.precision = GridPrecision::kHalf;
 }
 
 size_t FieldGridSet::bytes() const {

@@ -84,6 +84,12 @@ ImplicitFields buildImplicitFields(const Rig& rig,
     throw Error(ErrorCode::kInvalidArgument,
                 "buildImplicitFields: culling_h must be in [0, 0.5)");
   // The rig first, named by its source (partitionMesh validates it again).
+  if (options.grid_precision != GridPrecision::kFloat &&
+      options.grid_precision != GridPrecision::kHalf)
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: grid_precision must be kFloat or kHalf, "
+                "got " +
+                    std::to_string(static_cast<int>(options.grid_precision)));
   rig.validate().throwIfFailed("buildImplicitFields: " + rig.source);
   for (const auto& [name, samples] : options.joint_samples) {
     if (rig.skeleton.find(name) < 0)
@@ -240,6 +246,9 @@ ImplicitFields buildImplicitFields(const Rig& rig,
                       out.composition.warnings.end());
   out.times.operators_ms = detail::millisecondsSince(start);
 
+  if (options.grid_precision == GridPrecision::kHalf)
+    roundGridsToHalf(out.grids);
+
   start = std::chrono::steady_clock::now();
   report("iso values", 0);
   out.iso_values = computeIsoValues(out.grids, rig.mesh.positions,
@@ -254,6 +263,24 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   report("iso values", 1);
   out.times.iso_ms = detail::millisecondsSince(start);
   return out;
+}
+
+void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig) {
+  if (fields.grids.precision == GridPrecision::kHalf) return;
+  if (static_cast<int>(fields.iso_values.size()) != rig.mesh.vertexCount())
+    throw Error(ErrorCode::kInvalidArgument,
+                "useHalfPrecisionGrids: the fields have " +
+                    std::to_string(fields.iso_values.size()) +
+                    " iso values, the rig's mesh " +
+                    std::to_string(rig.mesh.vertexCount()) + " vertices");
+  FieldGridSet rounded = fields.grids;
+  roundGridsToHalf(rounded);
+  std::vector<int> outside;
+  std::vector<float> iso = computeIsoValues(rounded, rig.mesh.positions,
+                                            &fields.composition, &outside);
+  fields.grids = std::move(rounded);
+  fields.iso_values = std::move(iso);
+  fields.outside_vertices = std::move(outside);
 }
 
 }  // namespace isk

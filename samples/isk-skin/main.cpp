@@ -75,6 +75,7 @@ struct Options {
 
   // Surface tracking (--method implicit); defaults are the paper's.
   isk::SurfaceTrackingOptions tracking;
+  std::string grid_precision = "float";  // implicit: "float" or "half"
   bool tracking_given = false;
 };
 
@@ -643,6 +644,8 @@ int run(const Options& options) {
     isk::ImplicitFieldsOptions field_options;
     field_options.composition = composition;
     if (params_options) field_options = *params_options;
+    if (options.grid_precision == "half")
+      field_options.grid_precision = isk::GridPrecision::kHalf;
     // Fields are cached on disk (ISK_CACHE_DIR; "off" disables it).
     field_options.cache = true;
     const auto build_start = std::chrono::steady_clock::now();
@@ -885,7 +888,13 @@ int main(int argc, char** argv) {
           ->check(CLI::Range(0, 1000))
           ->capture_default_str(),
       app.add_flag("!--no-relaxation", tracking.relaxation,
-                   "implicit: no tangential relaxation (eq. 5, 6)")};
+                   "implicit: no tangential relaxation (eq. 5, 6)"),
+      app.add_option("--grid-precision", options.grid_precision,
+                     "implicit: float, or half (grids rounded to 16-bit "
+                     "floats: half the device memory, frames within a small "
+                     "fraction of the mesh's size)")
+          ->check(CLI::IsMember({"float", "half"}))
+          ->capture_default_str()};
   CLI11_PARSE(app, argc, argv);
   for (const CLI::Option* option : tracking_options)
     options.tracking_given = options.tracking_given || option->count() > 0;

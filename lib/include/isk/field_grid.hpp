@@ -55,15 +55,37 @@ FieldGrid bakeField(const BoneField& field, int resolution = 32);
 // outside the field's compact support).
 std::vector<uint32_t> occupiedCells(const FieldGrid& grid);
 
+// Precision of the grid nodes (FieldGridSet::precision).
+enum class GridPrecision {
+  kFloat,  // 32-bit floats, as baked
+  // Every node rounded to the nearest 16-bit IEEE float (roundGridsToHalf):
+  // OpenCL devices store halves (half the memory of the field data), the
+  // CPU reference samples the same rounded values as floats.
+  kHalf,
+};
+
+// "float", "half".
+const char* gridPrecisionName(GridPrecision precision);
+
 // All baked fields of a character, ready to upload.
 struct FieldGridSet {
   std::vector<FieldGrid> grids;     // one per field, in joint order
   std::vector<int> field_of_joint;  // #joints: index into grids, -1 if none
   int resolution = 32;
+  // kHalf: every node is a half-precision value (roundGridsToHalf).
+  GridPrecision precision = GridPrecision::kFloat;
 
   int fieldCount() const { return static_cast<int>(grids.size()); }
   // Bytes of every grid's nodes.
   size_t bytes() const;
 };
+
+// Rounds every node of every grid to the nearest half-precision value
+// (round to nearest even; values below half's smallest subnormal become 0)
+// and sets `grids.precision` to kHalf. Throws isk::Error(kInvalidArgument)
+// naming the field's joint and the node when a component's magnitude
+// exceeds 65504, half's largest value (a gradient that steep means model
+// units far too small for half precision); `grids` is unchanged then.
+void roundGridsToHalf(FieldGridSet& grids);
 
 }  // namespace isk

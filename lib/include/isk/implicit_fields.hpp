@@ -27,6 +27,10 @@ namespace isk {
 struct ImplicitFieldsOptions {
   BoneSamplingOptions sampling;  // Poisson-disk samples, culling, closure
   int grid_resolution = 32;      // nodes per axis of each baked field, 2..256
+  // kHalf: the grids are rounded to half precision after baking (or loading
+  // from the cache, which keeps them in float) and the iso values are taken
+  // from the rounded grids (useHalfPrecisionGrids).
+  GridPrecision grid_precision = GridPrecision::kFloat;
   // Operators per joint (union by default); the iso values are taken in
   // the composed field.
   CompositionOptions composition;
@@ -100,5 +104,15 @@ struct ImplicitFields {
 // vertices; deterministic for the same rig and options.
 ImplicitFields buildImplicitFields(const Rig& rig,
                                    const ImplicitFieldsOptions& options = {});
+
+// Turns `fields` (built for `rig`) into half-precision ones without fitting
+// again: rounds the grids (roundGridsToHalf: an OpenCL skinner then stores
+// 2 bytes per channel instead of 4) and takes the iso values and the
+// outside vertices again from the rounded grids, so that the rest pose
+// still lies on its iso-surfaces. The frames move by a small fraction of
+// the mesh's size (README, Benchmarks). Throws what roundGridsToHalf throws,
+// and isk::Error(kInvalidArgument) when `fields` do not fit `rig`'s mesh;
+// `fields` are unchanged then. Does nothing to fields already in half.
+void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig);
 
 }  // namespace isk

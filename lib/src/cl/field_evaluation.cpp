@@ -1,5 +1,6 @@
 #include "isk/cl/field_evaluation.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -98,6 +99,15 @@ void validateComposition(const Composition& composition, int field_count) {
   }
 }
 
+// The half-precision bits of `values` (round to nearest even; exact for
+// values rounded by roundGridsToHalf).
+std::vector<uint16_t> toHalves(const std::vector<float>& values) {
+  std::vector<uint16_t> out(values.size());
+  for (size_t i = 0; i < values.size(); ++i)
+    out[i] = Eigen::numext::bit_cast<uint16_t>(Eigen::half(values[i]));
+  return out;
+}
+
 }  // namespace
 
 const char* fieldStorageName(FieldStorage storage) {
@@ -130,6 +140,7 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
   }
   layout_.resolution = fields.resolution;
   layout_.field_of_joint = fields.field_of_joint;
+  layout_.precision = fields.precision;
   layout_.grids.reserve(fields.grids.size());
   for (const FieldGrid& g : fields.grids) {
     FieldGrid meta;
@@ -141,6 +152,18 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
     layout_.grids.push_back(std::move(meta));
   }
   chooseStorage(storage, fields);
+  half_ = fields.precision == GridPrecision::kHalf &&
+          storage_ == FieldStorage::kBuffer;
+  if (fields.precision == GridPrecision::kHalf) {
+    if (storage_ == FieldStorage::kBuffer)
+      storage_reason_ += "; half-precision grids stored as halves";
+    else if (image_half_)
+      storage_reason_ += "; half-precision grids in a CL_HALF_FLOAT image";
+    else
+      storage_reason_ +=
+          "; half-precision grids in a CL_FLOAT image (the device has no "
+          "CL_RGBA / CL_HALF_FLOAT 3D images: no memory saved)";
+  }
 
   // Static parameters; the rows of the transforms come with each pose.
   params_staging_.assign(
@@ -237,6 +260,12 @@ void ClFieldEvaluation::chooseStorage(FieldStorage requested,
             return f.image_channel_order == CL_RGBA &&
                    f.image_channel_data_type == CL_FLOAT;
           });
+      image_half_ =
+          fields.precision == GridPrecision::kHalf &&
+          std::any_of(formats.begin(), formats.end(), [](const auto& f) {
+            return f.image_channel_order == CL_RGBA &&
+                   f.image_channel_data_type == CL_HALF_FLOAT;
+          });
       const size_t n = static_cast<size_t>(fields.resolution);
       const size_t max_tiles[3] = {
           device.getInfo<CL_DEVICE_IMAGE3D_MAX_WIDTH>() / n,
@@ -293,6 +322,7 @@ void ClFieldEvaluation::chooseStorage(FieldStorage requested,
   if (!problem.empty()) {
     storage_ = FieldStorage::kBuffer;
     tiles_ = {1, 1, 1};
+    image_half_ = false;
     storage_reason_ += "; falls back to buffer: " + problem;
   }
 }
@@ -317,6 +347,15 @@ void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
       }
     }
   }
+  if (image_half_) {  // the values are halves already: exact
+    const std::vector<uint16_t> halves = toHalves(atlas);
+    image_ = cl::Image3D(context_->context(),
+                         CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                         cl::ImageFormat(CL_RGBA, CL_HALF_FLOAT), width, height,
+                         depth, 0, 0, const_cast<uint16_t*>(halves.data()));
+    field_bytes_ = halves.size() * sizeof(uint16_t);
+    return;
+  }
   image_ =
       cl::Image3D(context_->context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                   cl::ImageFormat(CL_RGBA, CL_FLOAT), width, height, depth, 0,
@@ -331,11 +370,20 @@ void ClFieldEvaluation::uploadBuffer(const FieldGridSet& fields) {
   for (int i = 0; i < field_count_; ++i)
     std::copy(fields.grids[i].nodes.begin(), fields.grids[i].nodes.end(),
               nodes.begin() + per_field * i);
-  nodes_ = context_->createBuffer(
-      CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, nodes.size() * sizeof(float),
-      nodes.data(),
-      "ClFieldEvaluation: grids of " + std::to_string(field_count_) +
-          " fields at " + std::to_string(resolution_) + "^3");
+  const std::string what = "ClFieldEvaluation: grids of " +
+                           std::to_string(field_count_) + " fields at " +
+                           std::to_string(resolution_) + "^3";
+  if (half_) {  // the values are halves already: exact
+    std::vector<uint16_t> halves = toHalves(nodes);
+    nodes_ = context_->createBuffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                                    halves.size() * sizeof(uint16_t),
+                                    halves.data(), what + " (half)");
+    field_bytes_ = halves.size() * sizeof(uint16_t);
+    return;
+  }
+  nodes_ =
+      context_->createBuffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                             nodes.size() * sizeof(float), nodes.data(), what);
   field_bytes_ = nodes.size() * sizeof(float);
 }
 
@@ -424,8 +472,9 @@ void ClFieldEvaluation::setCompositionArgs(cl::Kernel& kernel,
 }
 
 std::string ClFieldEvaluation::buildOptions() const {
-  return storage_ == FieldStorage::kImage ? "-DISK_FIELDS_IMAGE=1"
-                                          : "-DISK_FIELDS_IMAGE=0";
+  if (storage_ == FieldStorage::kImage) return "-DISK_FIELDS_IMAGE=1";
+  return half_ ? "-DISK_FIELDS_IMAGE=0 -DISK_FIELDS_HALF=1"
+               : "-DISK_FIELDS_IMAGE=0";
 }
 
 void ClFieldEvaluation::setFieldArgs(cl::Kernel& kernel,

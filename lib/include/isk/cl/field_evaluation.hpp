@@ -114,7 +114,8 @@ class ClFieldEvaluation {
   // Binds operator data, pairs, pair count, pair angles, controllers and
   // operator scales to arguments first_index .. first_index + 5.
   void setCompositionArgs(cl::Kernel& kernel, cl_uint first_index) const;
-  // "-DISK_FIELDS_IMAGE=1" or "-DISK_FIELDS_IMAGE=0".
+  // "-DISK_FIELDS_IMAGE=1", or "-DISK_FIELDS_IMAGE=0" with
+  // " -DISK_FIELDS_HALF=1" for half-precision grids in a buffer.
   std::string buildOptions() const;
 
   // The storage used (kImage or kBuffer) and why, in words.
@@ -176,7 +177,9 @@ class ClFieldEvaluation {
   cl::Image3D image_;
   cl::Buffer nodes_;
   cl::Buffer params_;
-  cl::Buffer cells_;  // occupiedCells of the grids
+  bool half_ = false;        // buffer of halves (ISK_FIELDS_HALF)
+  bool image_half_ = false;  // atlas in CL_HALF_FLOAT
+  cl::Buffer cells_;         // occupiedCells of the grids
   cl::Image3D operator_image_;
   cl::Buffer operator_nodes_, pairs_, pair_angles_, controllers_;
   Composition composition_layout_;  // the composition without its tables
