@@ -414,6 +414,12 @@ TEST(ClFieldEvaluation, InvalidInputThrowsWithMessage) {
   expectInvalidArgument(
       [&] { (void)ClFieldEvaluation(context, broken, joints); },
       "node 1 is not finite");
+  broken = fields;  // marked half, but a node is no half
+  roundGridsToHalf(broken);
+  broken.grids[0].nodes[8] = 0.1f + 1e-6f;
+  expectInvalidArgument(
+      [&] { (void)ClFieldEvaluation(context, broken, joints); },
+      "field 0 node 2 holds 0.100001, not a half-precision value");
 
   ClFieldEvaluation device(context, fields, joints, FieldStorage::kBuffer);
   Matrix3Xf points = Matrix3Xf::Zero(4, 3);

@@ -66,6 +66,15 @@ void validateFields(const FieldGridSet& fields, int joint_count) {
     for (size_t k = 0; k < g.nodes.size(); ++k)
       if (!std::isfinite(g.nodes[k]))
         invalid(field + " node " + std::to_string(k / 4) + " is not finite");
+    // Stored as halves, the nodes must be halves already, or the device
+    // would sample other values than the reference.
+    if (fields.precision == GridPrecision::kHalf)
+      for (size_t k = 0; k < g.nodes.size(); ++k)
+        if (static_cast<float>(Eigen::half(g.nodes[k])) != g.nodes[k])
+          invalid(field + " node " + std::to_string(k / 4) + " holds " +
+                  std::to_string(g.nodes[k]) +
+                  ", not a half-precision value, in a set marked kHalf "
+                  "(round it with roundGridsToHalf)");
   }
 }
 
