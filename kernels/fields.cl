@@ -75,6 +75,23 @@
 #define ISK_FIELD_PARAM_STRIDE 7
 #define ISK_CONTROLLER_SAMPLES 65
 
+// The trilinear interpolation of a cell's 8 corner values (cXYZ at
+// x, y, z in {0, 1}) at t in [0, 1]^3: along x, then y, then z, in the CPU
+// reference's order (detail::trilinearNodes, lib/src/trilinear.hpp).
+ISK_INLINE float4 trilinear_corners(const float4 c000, const float4 c100,
+                                    const float4 c010, const float4 c110,
+                                    const float4 c001, const float4 c101,
+                                    const float4 c011, const float4 c111,
+                                    const float3 t) {
+  const float4 x00 = c000 + t.x * (c100 - c000);
+  const float4 x10 = c010 + t.x * (c110 - c010);
+  const float4 x01 = c001 + t.x * (c101 - c001);
+  const float4 x11 = c011 + t.x * (c111 - c011);
+  const float4 y0 = x00 + t.y * (x10 - x00);
+  const float4 y1 = x01 + t.y * (x11 - x01);
+  return y0 + t.z * (y1 - y0);
+}
+
 #if ISK_FIELDS_IMAGE
 #define ISK_FIELD_DATA_T read_only image3d_t
 #define ISK_OPERATOR_DATA_T read_only image3d_t
@@ -97,13 +114,7 @@ ISK_INLINE float4 trilinear_texels(read_only image3d_t image, const int4 origin,
   const float4 c101 = read_imagef(image, kTexelSampler, b + (int4)(1, 0, 1, 0));
   const float4 c011 = read_imagef(image, kTexelSampler, b + (int4)(0, 1, 1, 0));
   const float4 c111 = read_imagef(image, kTexelSampler, b + (int4)(1, 1, 1, 0));
-  const float4 x00 = c000 + t.x * (c100 - c000);
-  const float4 x10 = c010 + t.x * (c110 - c010);
-  const float4 x01 = c001 + t.x * (c101 - c001);
-  const float4 x11 = c011 + t.x * (c111 - c011);
-  const float4 y0 = x00 + t.y * (x10 - x00);
-  const float4 y1 = x01 + t.y * (x11 - x01);
-  return y0 + t.z * (y1 - y0);
+  return trilinear_corners(c000, c100, c010, c110, c001, c101, c011, c111, t);
 }
 #else
 #ifndef ISK_FIELDS_HALF
@@ -141,15 +152,10 @@ ISK_INLINE float4 trilinear_nodes(__global const float4* grid, const int n,
   const float3 t = u - convert_float3(i);
   const size_t dy = (size_t)n;
   const size_t dz = (size_t)n * (size_t)n;
-  __global const float4* base =
+  __global const float4* b =
       grid + ((size_t)i.x + dy * (size_t)i.y + dz * (size_t)i.z);
-  const float4 x00 = base[0] + t.x * (base[1] - base[0]);
-  const float4 x10 = base[dy] + t.x * (base[dy + 1] - base[dy]);
-  const float4 x01 = base[dz] + t.x * (base[dz + 1] - base[dz]);
-  const float4 x11 = base[dy + dz] + t.x * (base[dy + dz + 1] - base[dy + dz]);
-  const float4 y0 = x00 + t.y * (x10 - x00);
-  const float4 y1 = x01 + t.y * (x11 - x01);
-  return y0 + t.z * (y1 - y0);
+  return trilinear_corners(b[0], b[1], b[dy], b[dy + 1], b[dz], b[dz + 1],
+                           b[dy + dz], b[dy + dz + 1], t);
 }
 
 #if ISK_FIELDS_HALF
@@ -172,13 +178,7 @@ ISK_INLINE float4 trilinear_half_nodes(__global const half* data,
   const float4 c101 = vload_half4(b + dz + 1, data);
   const float4 c011 = vload_half4(b + dy + dz, data);
   const float4 c111 = vload_half4(b + dy + dz + 1, data);
-  const float4 x00 = c000 + t.x * (c100 - c000);
-  const float4 x10 = c010 + t.x * (c110 - c010);
-  const float4 x01 = c001 + t.x * (c101 - c001);
-  const float4 x11 = c011 + t.x * (c111 - c011);
-  const float4 y0 = x00 + t.y * (x10 - x00);
-  const float4 y1 = x01 + t.y * (x11 - x01);
-  return y0 + t.z * (y1 - y0);
+  return trilinear_corners(c000, c100, c010, c110, c001, c101, c011, c111, t);
 }
 #endif
 #endif
