@@ -36,7 +36,8 @@ namespace isk {
 
 // How an implicit skinner is built and what each frame does.
 struct ImplicitSkinnerOptions {
-  // Samples per bone, grid resolution, operators per joint, progress, ...
+  // Samples per bone, grid resolution and precision, operators per joint,
+  // progress, ...
   ImplicitFieldsOptions fields;
   // Rounds, sigma, contact angle, tolerance, relaxation, smoothing: the
   // paper's values by default.

@@ -28,6 +28,12 @@
 // has no image support, no CL_RGBA / CL_FLOAT 3D images, or when the atlas
 // would exceed CL_DEVICE_IMAGE3D_MAX_WIDTH / HEIGHT / DEPTH; storage() tells
 // what is used and storageReason() why.
+// Grids of precision kHalf (isk::roundGridsToHalf; every node must be a
+// half, or the constructor names the first that is not) are stored as
+// halves: a buffer of 4 halves per node (read with vload_half4), or a
+// CL_RGBA / CL_HALF_FLOAT image when the device has them (else CL_FLOAT
+// holding the same values); either way the kernels sample exactly the
+// values the reference samples, and fieldBytes() says what is held.
 //
 // Other kernels can sample the same data (kernels/fields.cl: functions
 // sample_field, compose_pair, sample_composed): build them with
