@@ -310,6 +310,8 @@ TEST(IskSkinTest, HalfPrecisionGridsAreAnOption) {
   const nlohmann::json half =
       runImplicit({"--grid-precision", "half"}, half_dir);
   ASSERT_TRUE(full.is_object() && half.is_object());
+  EXPECT_EQ(full["implicit"]["grid_precision"], "float");
+  EXPECT_EQ(half["implicit"]["grid_precision"], "half");
   const double full_drift = full["implicit"]["iso_drift"]["mean"].get<double>();
   const double half_drift = half["implicit"]["iso_drift"]["mean"].get<double>();
   EXPECT_LT(half_drift, 2 * full_drift + 1e-3);

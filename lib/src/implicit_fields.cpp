@@ -83,13 +83,13 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   if (!(options.sampling.culling_h >= 0 && options.sampling.culling_h < 0.5))
     throw Error(ErrorCode::kInvalidArgument,
                 "buildImplicitFields: culling_h must be in [0, 0.5)");
-  // The rig first, named by its source (partitionMesh validates it again).
   if (options.grid_precision != GridPrecision::kFloat &&
       options.grid_precision != GridPrecision::kHalf)
     throw Error(ErrorCode::kInvalidArgument,
                 "buildImplicitFields: grid_precision must be kFloat or kHalf, "
                 "got " +
                     std::to_string(static_cast<int>(options.grid_precision)));
+  // The rig first, named by its source (partitionMesh validates it again).
   rig.validate().throwIfFailed("buildImplicitFields: " + rig.source);
   for (const auto& [name, samples] : options.joint_samples) {
     if (rig.skeleton.find(name) < 0)

@@ -283,6 +283,7 @@ class IsoDriftProbe {
     section["composition"] = describe();
     section["operators"] = operators;
     section["fields"] = fields_.grids.fieldCount();
+    section["grid_precision"] = isk::gridPrecisionName(fields_.grids.precision);
     section["build_ms"] = build_ms_;
     section["upload_ms"] = upload_ms_;
     section["operator_tables_mib"] = composition.tableBytes() / kMiB;
