@@ -562,7 +562,18 @@ def implicit_section(results):
 
 
 LEVERS = ("all", "no-neighbourhoods", "no-march-order", "no-occupied-cells",
-          "half-grids")
+          "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
+
+
+def moved(run):
+    """The lever frame's distance from its paired frame (over the
+    diagonal): mean / largest / share beyond 1e-3; n/a in older JSON."""
+    if "mean_moved" not in run:
+        return "n/a"
+    if run["max_moved"] == 0:
+        return "0 (same frames)"
+    return (f"{run['mean_moved']:.1e} / {run['max_moved']:.1e} / "
+            f"{100 * run['moved_beyond_1e-3']:.2f}%")
 
 
 def levers_section(results):
@@ -585,7 +596,16 @@ def levers_section(results):
               "way round: every switch on, and the grids rounded to half "
               "precision (`isk::useHalfPrecisionGrids`; stored as halves "
               "on the device), which moves the result slightly (README, "
-              "Benchmarks). Each benchmark times its "
+              "Benchmarks); so does 'sigma-<s>': every switch on, and the "
+              "projection's step size (eq. 4, `SurfaceTrackingOptions::"
+              "sigma`) s instead of the paper's 0.35, which the paper "
+              "calls a compromise between speed of convergence and "
+              "accuracy. 'moved' says how far each frame lies from the "
+              "paired frame of the same pose: the mean and the largest "
+              "distance of a vertex, over the rest mesh's bounding-box "
+              "diagonal, and the share of vertices farther than 1e-3 of "
+              "it (0 for the switches that keep the result). Each "
+              "benchmark times its "
               "frames side by side with the same poses on a second skinner "
               "with every switch on, the two in turn: 'frame / all' is the "
               "ratio of those interleaved frames (on a shared machine whose "
@@ -619,14 +639,16 @@ def levers_section(results):
                     versus = "n/a"
                 rows.append([model, lever, ms(frame), fps(fps_of(frame)),
                              ms(run.get("projection_ms")),
-                             ms(run.get("all_frame_ms")), versus])
+                             ms(run.get("all_frame_ms")), versus,
+                             moved(run)])
         if rows:
             lines += [f"### {results.device_name(d)} (OpenCL device {d})",
                       ""]
             lines += table(["model", "switches", "ms/frame", "fps",
                             "projection ms", "paired 'all' ms/frame",
-                            "frame / all"], rows,
-                           ["l", "l", "r", "r", "r", "r", "r"])
+                            "frame / all",
+                            "moved: mean / largest / beyond 1e-3"], rows,
+                           ["l", "l", "r", "r", "r", "r", "r", "r"])
     return lines
 
 

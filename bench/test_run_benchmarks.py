@@ -57,11 +57,11 @@ class Render(unittest.TestCase):
         rows = [l for l in text.splitlines()
                 if l.startswith("| human-addon | no-neighbourhoods")]
         self.assertEqual(len(rows), 1, text)
-        self.assertTrue(rows[0].endswith("| 1.50x |"), rows[0])
+        self.assertTrue(rows[0].endswith("| 1.50x | n/a |"), rows[0])
         rows = [l for l in text.splitlines()
                 if l.startswith("| human-addon | no-occupied-cells")]
         self.assertEqual(len(rows), 1, text)
-        self.assertTrue(rows[0].endswith("| 1.25x |"), rows[0])
+        self.assertTrue(rows[0].endswith("| 1.25x | n/a |"), rows[0])
         self.assertNotIn("nan", text.lower())
 
     def test_levers_interleaved_use_their_own_ratio(self):
@@ -79,8 +79,33 @@ class Render(unittest.TestCase):
                 if l.startswith("| human-addon | no-march-order")]
         self.assertEqual(len(rows), 1, text)
         self.assertIn("| 11.00 |", rows[0])
-        self.assertTrue(rows[0].endswith("| 10.00 | 1.10x |"), rows[0])
+        self.assertTrue(rows[0].endswith("| 10.00 | 1.10x | n/a |"), rows[0])
         self.assertNotIn("nan", text.lower())
+
+    def test_levers_say_how_far_the_frames_moved(self):
+        # A switch that keeps the result, and a step size that does not.
+        same = dict(mean_moved=0.0, max_moved=0.0, **{"moved_beyond_1e-3": 0.0})
+        data = document([
+            run("Levers/human-addon/no-march-order:0/min_time:2.000", 20.0,
+                projection_ms=9.0, vertices=7798, frame_ms=11.0,
+                all_frame_ms=10.0, frame_over_all=1.1, **same),
+            run("Levers/human-addon/sigma-0.7:0/min_time:2.000", 20.0,
+                projection_ms=6.0, vertices=7798, frame_ms=8.0,
+                all_frame_ms=10.0, frame_over_all=0.8, mean_moved=1.84e-4,
+                max_moved=1.63e-2, **{"moved_beyond_1e-3": 0.0415}),
+        ])
+        text = run_benchmarks.render(data, "cmd")
+        rows = [l for l in text.splitlines()
+                if l.startswith("| human-addon | no-march-order")]
+        self.assertEqual(len(rows), 1, text)
+        self.assertTrue(rows[0].endswith("| 1.10x | 0 (same frames) |"),
+                        rows[0])
+        rows = [l for l in text.splitlines()
+                if l.startswith("| human-addon | sigma-0.7")]
+        self.assertEqual(len(rows), 1, text)
+        self.assertTrue(
+            rows[0].endswith("| 0.80x | 1.8e-04 / 1.6e-02 / 4.15% |"),
+            rows[0])
 
     def test_targets_from_the_figures(self):
         data = document([
