@@ -876,7 +876,8 @@ int main(int argc, char** argv) {
           ->check(CLI::Range(0, 1000))
           ->capture_default_str(),
       app.add_option("--sigma", tracking.sigma,
-                     "implicit: Newton step factor of eq. 4, (0, 1]")
+                     "implicit: Newton step factor of eq. 4, (0, 1]; larger is "
+                     "faster and less accurate (README, Benchmarks)")
           ->check(CLI::Range(1e-6, 1.0))
           ->capture_default_str(),
       app.add_option("--contact-angle", tracking.contact_angle_degrees,
