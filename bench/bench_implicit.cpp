@@ -16,14 +16,16 @@
 // Implicit/<model>/dqs:<d>: the same frame with isk::ClSkinning (DQS, normals
 // recomputed, reads) on the same device, so that implicit / DQS is a ratio
 // measured in one process.
+// Implicit/<model>/paired:<d>: the two frames above in turn, for an
+// implicit / DQS ratio of frames timed side by side.
 // Implicit/<model>/reference: isk::CpuImplicitSkinner (1 thread).
 //
-// Scaling/vertices/<target>/{implicit,dqs}:<d>: a 4-bone cylinder (bones of
-// length 3, radius 1) with about 2.5k, 10k, 40k and 160k vertices;
-// Scaling/joints/<bones>/{implicit,dqs}:<d>: cylinders of 2 to 32 bones with
-// about 40k vertices. Every inner joint is bent 30 to 50 degrees, alternately
-// up and down (bench_support.hpp, zigzagPose). Same frame and counters as
-// Implicit/.
+// Scaling/vertices/<target>/{implicit,dqs,paired}:<d>: a 4-bone cylinder (bones
+// of length 3, radius 1) with about 2.5k, 10k, 40k and 160k vertices;
+// Scaling/joints/<bones>/{implicit,dqs,paired}:<d>: cylinders of 2 to 32 bones
+// with about 40k vertices. Every inner joint is bent 30 to 50 degrees,
+// alternately up and down (bench_support.hpp, zigzagPose). Same frame and
+// counters as Implicit/.
 //
 // The fields (the library's default operators) are built once per model,
 // outside the timing; PoCL compiles a kernel at its first launch, so one
@@ -286,6 +288,54 @@ void dqsOpenCl(benchmark::State& state, const Case& c, int device) {
   state.SetLabel(devices()[device].describe());
 }
 
+// Implicit/<model>/paired:<d>: an implicit frame (as opencl:<d>) and a DQS
+// frame (as dqs:<d>) of the same pose in turn, which goes first
+// alternating, so that implicit / DQS comes from frames timed side by side:
+// the separate benchmarks run minutes apart on a shared machine whose speed
+// drifts (their ratio moved from 9.6x to 11.3x between two runs of the same
+// code). Counters: implicit_ms and dqs_ms (wall time of one frame with its
+// read-backs, means over the iterations) and implicit_over_dqs, their
+// ratio.
+void implicitPairedWithDqs(benchmark::State& state, const Case& c, int device) {
+  const Rig& rig = c.rig();
+  ImplicitSkinner implicit(context(device), rig, implicitFieldsOf(c),
+                           ImplicitSkinnerOptions());
+  ClSkinning dqs(context(device), rig.mesh, rig.weights,
+                 rig.skeleton.jointCount());
+  implicit.run(c.pose(rig, 0));  // PoCL compiles at the first launch
+  dqs.run(SkinningMethod::kDualQuaternion, c.pose(rig, 0), true);
+  Matrix3Xf positions, normals;
+  double implicit_ms = 0, dqs_ms = 0;
+  int64_t frame = 0;
+  for (auto _ : state) {
+    const TransformList pose = c.pose(rig, frame);
+    for (int k = 0; k < 2; ++k) {
+      const bool implicit_frame = (k == 0) == (frame % 2 == 0);
+      const auto start = std::chrono::steady_clock::now();
+      if (implicit_frame) {
+        implicit.run(pose);
+        implicit.readPositions(positions);
+        implicit.readNormals(normals);
+      } else {
+        dqs.run(SkinningMethod::kDualQuaternion, pose, true);
+        dqs.readPositions(positions);
+        dqs.readNormals(normals);
+      }
+      benchmark::DoNotOptimize(positions.data());
+      benchmark::DoNotOptimize(normals.data());
+      (implicit_frame ? implicit_ms : dqs_ms) += msSince(start);
+    }
+    ++frame;
+  }
+  const double n = static_cast<double>(std::max<int64_t>(frame, 1));
+  state.counters["vertices"] = rig.mesh.vertexCount();
+  state.counters["joints"] = rig.skeleton.skinJointCount();
+  state.counters["implicit_ms"] = implicit_ms / n;
+  state.counters["dqs_ms"] = dqs_ms / n;
+  state.counters["implicit_over_dqs"] = dqs_ms > 0 ? implicit_ms / dqs_ms : 0;
+  state.SetLabel(devices()[device].describe());
+}
+
 void implicitReference(benchmark::State& state, const Case& c) {
   const Rig& rig = c.rig();
   const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
@@ -317,6 +367,11 @@ void registerCase(const std::string& prefix, const Case& c, bool reference,
         ->MinTime(min_time);
     registerGuarded((prefix + onDevice("dqs", device.index)).c_str(), dqsOpenCl,
                     c, device.index)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->MinTime(min_time);
+    registerGuarded((prefix + onDevice("paired", device.index)).c_str(),
+                    implicitPairedWithDqs, c, device.index)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->MinTime(min_time);
