@@ -178,6 +178,21 @@ void implicitOpenCl(benchmark::State& state, const Case& c, int device) {
   state.SetLabel(devices()[device].describe());
 }
 
+// Two frames of one pose in turn, run_frame(true) and run_frame(false),
+// which goes first alternating with `frame` so that neither gains from the
+// other's warm caches or from the machine's drift; adds each frame's wall
+// time to true_ms or false_ms.
+template <class Frame>
+void framesInTurn(int64_t frame, const Frame& run_frame, double& true_ms,
+                  double& false_ms) {
+  for (int k = 0; k < 2; ++k) {
+    const bool which = (k == 0) == (frame % 2 == 0);
+    const auto start = std::chrono::steady_clock::now();
+    run_frame(which);
+    (which ? true_ms : false_ms) += msSince(start);
+  }
+}
+
 // Levers/<model>/<lever>:<d>: the implicit frame with one speed switch of
 // SurfaceTrackingOptions off (the result is the same, tests check it):
 // 'all' has every switch on, as Implicit/ runs it. Each iteration runs the
@@ -226,19 +241,20 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   int64_t frame = 0;
   for (auto _ : state) {
     const TransformList pose = c.pose(rig, frame);
-    for (int k = 0; k < 2; ++k) {
-      const bool lever_frame = (k == 0) == (frame % 2 == 0);
-      ImplicitSkinner& skinner = lever_frame ? switched : all;
-      Matrix3Xf& positions = lever_frame ? switched_positions : all_positions;
-      const auto start = std::chrono::steady_clock::now();
-      skinner.run(pose);
-      skinner.readPositions(positions);
-      skinner.readNormals(normals);
-      benchmark::DoNotOptimize(positions.data());
-      benchmark::DoNotOptimize(normals.data());
-      (lever_frame ? switched_ms : all_ms) += msSince(start);
-      if (lever_frame) times.add(skinner.lastTimes());
-    }
+    framesInTurn(
+        frame,
+        [&](bool lever_frame) {
+          ImplicitSkinner& skinner = lever_frame ? switched : all;
+          Matrix3Xf& positions =
+              lever_frame ? switched_positions : all_positions;
+          skinner.run(pose);
+          skinner.readPositions(positions);
+          skinner.readNormals(normals);
+          benchmark::DoNotOptimize(positions.data());
+          benchmark::DoNotOptimize(normals.data());
+        },
+        switched_ms, all_ms);
+    times.add(switched.lastTimes());
     ++frame;
     state.PauseTiming();
     switched.tracking().readStates(states);
@@ -309,22 +325,22 @@ void implicitPairedWithDqs(benchmark::State& state, const Case& c, int device) {
   int64_t frame = 0;
   for (auto _ : state) {
     const TransformList pose = c.pose(rig, frame);
-    for (int k = 0; k < 2; ++k) {
-      const bool implicit_frame = (k == 0) == (frame % 2 == 0);
-      const auto start = std::chrono::steady_clock::now();
-      if (implicit_frame) {
-        implicit.run(pose);
-        implicit.readPositions(positions);
-        implicit.readNormals(normals);
-      } else {
-        dqs.run(SkinningMethod::kDualQuaternion, pose, true);
-        dqs.readPositions(positions);
-        dqs.readNormals(normals);
-      }
-      benchmark::DoNotOptimize(positions.data());
-      benchmark::DoNotOptimize(normals.data());
-      (implicit_frame ? implicit_ms : dqs_ms) += msSince(start);
-    }
+    framesInTurn(
+        frame,
+        [&](bool implicit_frame) {
+          if (implicit_frame) {
+            implicit.run(pose);
+            implicit.readPositions(positions);
+            implicit.readNormals(normals);
+          } else {
+            dqs.run(SkinningMethod::kDualQuaternion, pose, true);
+            dqs.readPositions(positions);
+            dqs.readNormals(normals);
+          }
+          benchmark::DoNotOptimize(positions.data());
+          benchmark::DoNotOptimize(normals.data());
+        },
+        implicit_ms, dqs_ms);
     ++frame;
   }
   const double n = static_cast<double>(std::max<int64_t>(frame, 1));
