@@ -3,8 +3,8 @@
 //
 // A gather per vertex over its incident triangles (compressed rows built once
 // on the host), so no atomics: each vertex sums the cross products of its
-// triangles in adjacency order and normalizes; a vanishing sum takes the
-// fallback normal (the skinned normal).
+// triangles in adjacency order and normalizes; a vanishing or overflowing
+// sum takes the fallback normal (the skinned normal).
 
 __kernel void vertex_normals(const uint vertex_count,
                              __global const float* positions,
@@ -25,6 +25,10 @@ __kernel void vertex_normals(const uint vertex_count,
     sum += cross(b - a, c - a);
   }
   const float len = sqrt(dot(sum, sum));
-  vstore3(len > FLT_MIN ? sum / len : vload3(v, fallback_normals), v,
-          out_normals);
+  // isfinite: a cross product past FLT_MAX (a pose scaled or moved absurdly
+  // far) is inf, and inf / inf NaN; a contracted fma gives inf where the
+  // reference's plain products give NaN, so both test the length.
+  vstore3(len > FLT_MIN && isfinite(len) ? sum / len
+                                         : vload3(v, fallback_normals),
+          v, out_normals);
 }

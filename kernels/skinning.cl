@@ -47,7 +47,7 @@ __kernel void skin_lbs(const uint vertex_count,
   float3 m = (float3)(dot(cross(b, c), n), dot(cross(c, a), n),
                       dot(cross(a, b), n));
   const float len = sqrt(dot(m, m));
-  m = len > FLT_MIN ? m / len : n;
+  m = len > FLT_MIN && isfinite(len) ? m / len : n;  // inf: scaled past FLT_MAX
   vstore3(m, v, out_normals);
 }
 

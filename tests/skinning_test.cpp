@@ -342,5 +342,48 @@ TEST(VertexNormals, IsolatedAndDegenerateVerticesTakeTheFallback) {
   EXPECT_EQ(out.row(4), fallback.row(4));
 }
 
+// A triangle whose cross product passes FLT_MAX (a joint scaled by 1e20):
+// the sum is (0, 0, inf), which normalizes to NaN; both paths must take the
+// fallback instead. NVIDIA's OpenCL contracts the cross product into fused
+// multiply-adds and got inf where plain products give NaN, which the old
+// length test let through.
+TEST(VertexNormals, OverflowingCrossProductsTakeTheFallbackOnBothPaths) {
+  Mesh mesh;
+  mesh.positions.resize(3, 3);
+  mesh.positions << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  mesh.normals.resize(3, 3);
+  mesh.normals << 0, 0, 1, 0, 0, 1, 0, 0, 1;
+  mesh.triangles.resize(1, 3);
+  mesh.triangles << 0, 1, 2;
+  const SkinWeights weights =
+      SkinWeights::fromLists({{{0, 1.f}}, {{0, 1.f}}, {{0, 1.f}}});
+  const TransformList pose = {Eigen::Affine3f(Eigen::Scaling(1e20f))};
+  CpuSkinning reference(mesh, weights, 1);
+  ClSkinning device(test::sharedContext(), mesh, weights, 1);
+  for (const bool recompute : {false, true}) {
+    reference.run(SkinningMethod::kLinearBlend, pose, recompute);
+    device.run(SkinningMethod::kLinearBlend, pose, recompute);
+    Matrix3Xf device_normals;
+    device.readNormals(device_normals);
+    const char* what = recompute ? "recomputed" : "skinned";
+    for (int v = 0; v < 3; ++v) {
+      EXPECT_EQ(reference.normals().row(v), mesh.normals.row(v))
+          << "reference, " << what << ", vertex " << v;
+      EXPECT_EQ(device_normals.row(v), mesh.normals.row(v))
+          << "device, " << what << ", vertex " << v;
+    }
+  }
+  // The normals job alone on positions whose cross product is (0, 0, inf).
+  Matrix3Xf positions(3, 3);
+  positions << 0, 0, 0, 1e20f, 0, 0, 0, 1e20f, 0;
+  const auto adjacency = VertexTriangleAdjacency::build(mesh.triangles, 3);
+  Matrix3Xf out;
+  VertexNormalsJob job{&positions, &mesh.triangles, &adjacency, &mesh.normals,
+                       &out};
+  job.run();
+  for (int v = 0; v < 3; ++v)
+    EXPECT_EQ(out.row(v), mesh.normals.row(v)) << "normals job, vertex " << v;
+}
+
 }  // namespace
 }  // namespace isk

@@ -39,7 +39,7 @@ void skinLinearBlend(const SkinningJob& job, const std::vector<float>& packed) {
     const Vec3 a = r0.head<3>(), b = r1.head<3>(), c = r2.head<3>();
     Vec3 m(b.cross(c).dot(nrm), c.cross(a).dot(nrm), a.cross(b).dot(nrm));
     const float len = std::sqrt(m.dot(m));
-    m = len > FLT_MIN ? Vec3(m / len) : nrm;
+    m = len > FLT_MIN && std::isfinite(len) ? Vec3(m / len) : nrm;
     job.out_normals->row(v) = m;
   }
 }

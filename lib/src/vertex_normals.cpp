@@ -70,7 +70,7 @@ void VertexNormalsJob::run() const {
       sum += (b - a).cross(c - a);
     }
     const float len = std::sqrt(sum.dot(sum));
-    if (len > FLT_MIN) {
+    if (len > FLT_MIN && std::isfinite(len)) {  // overflow: the fallback
       out_normals->row(v) = sum / len;
     } else {
       out_normals->row(v) = fallback_normals->row(v);
