@@ -815,6 +815,21 @@ def scaling_section(results):
                         0)):
                 cl = runs[point].get(f"implicit:{d}")
                 dqs = runs[point].get(f"dqs:{d}")
+                paired = runs[point].get(f"paired:{d}")
+                if not cl and paired and paired.get("implicit_ms"):
+                    # A run of the paired frames alone (a recorded GPU run):
+                    # their own times, no stage columns.
+                    implicit_ms = paired["implicit_ms"]
+                    rows.append([point, count(paired.get("vertices")),
+                                 count(paired.get("joints")), ms(implicit_ms),
+                                 fps(fps_of(implicit_ms)),
+                                 ms(paired.get("dqs_ms")),
+                                 ratio_cell(runs[point], d, "implicit"),
+                                 "n/a", "n/a", "n/a", "n/a",
+                                 f"{1e6 * implicit_ms / paired['vertices']:.0f}"
+                                 if paired.get("vertices") else "n/a",
+                                 "n/a"])
+                    continue
                 if not cl:
                     continue
                 cl_ms = to_ms(cl)
@@ -1090,6 +1105,8 @@ def recorded_section(path, results):
         body += levers_section(results)
     if results.family("Frame"):
         body += frame_section(results)
+    if results.family("Scaling"):
+        body += scaling_section(results)
     if results.family("FieldEval") or results.family("FieldCompose"):
         body += fields_section(results)
     if results.family("ProgramBuild") or results.family("FieldBuild"):

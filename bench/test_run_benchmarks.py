@@ -192,6 +192,28 @@ class Render(unittest.TestCase):
         self.assertIn("#### Vendor / GPU (OpenCL device 0)", text)
         self.assertNotIn("nan", text.lower())
 
+    def test_a_recorded_run_of_paired_scaling_frames_has_its_rows(self):
+        # A recorded GPU run with only Scaling/.../paired: the rows take the
+        # paired frames' own times; the stage columns say n/a.
+        here = document([implicit("Big", "opencl:0", 50.0, 150000)])
+        there = document([
+            run("Scaling/vertices/160k/paired:0/min_time:1.000", 2.0,
+                vertices=160000, joints=4, implicit_ms=1.5, dqs_ms=0.5,
+                implicit_over_dqs=3.0)],
+            devices=(("gpu", "Vendor / GPU"),))
+        text = run_benchmarks.render(here, "cmd",
+                                     recorded=[("bench/results/x.json",
+                                                there)])
+        recorded = text[text.index("## Recorded run: Vendor / GPU"):]
+        self.assertIn("#### Vertex count, Vendor / GPU (OpenCL device 0)",
+                      recorded)
+        row = next(l for l in recorded.splitlines()
+                   if l.startswith("| 160k |"))
+        self.assertIn("| 160,000 | 4 | 1.500 | 667 | 0.500 | "
+                      "3.0x (paired: 1.500 / 0.500 ms) | n/a |", row)
+        self.assertTrue(row.endswith("| 9 | n/a |"), row)
+        self.assertIn("#### Bone count: not run", recorded)
+
     def test_partial_families_and_google_benchmark_suffixes(self):
         data = document([
             run("Frame/opencl:0/M/dqs", 2.0, vertices=1000, upload_ms=0.1,
