@@ -361,7 +361,7 @@ __kernel void track_smooth(const uint vertex_count,
       }
       const float length =
           sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
-      if (length > 0.0f) {
+      if (length > 0.0f && isfinite(length)) {  // inf: no direction
         normal /= length;
         tangential =
             d - (d.x * normal.x + d.y * normal.y + d.z * normal.z) * normal;

@@ -708,7 +708,7 @@ void CpuSurfaceTracking::smooth() {
                   .cross(positions_.row(rings.neighbours[j]).transpose() - x);
         }
         const float length = normal.norm();
-        if (length > 0.f) {
+        if (length > 0.f && std::isfinite(length)) {  // inf: no direction
           normal /= length;
           tangential = d - d.dot(normal) * normal;
         }
