@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -255,6 +256,7 @@ namespace {
 struct PosedBox {
   Eigen::Vector3f corners[8];
   Eigen::Vector3f edges[3];
+  Eigen::Vector3f lo, hi;  // the corners' axis-aligned bounds
 };
 
 PosedBox posedBox(const FieldGrid& grid, const Eigen::Affine3f& to_bone,
@@ -269,6 +271,11 @@ PosedBox posedBox(const FieldGrid& grid, const Eigen::Affine3f& to_bone,
                                                 c & 2 ? hi.y() : lo.y(),
                                                 c & 4 ? hi.z() : lo.z());
   for (int e = 0; e < 3; ++e) out.edges[e] = to_model.linear().col(e);
+  out.lo = out.hi = out.corners[0];
+  for (int c = 1; c < 8; ++c) {
+    out.lo = out.lo.cwiseMin(out.corners[c]);
+    out.hi = out.hi.cwiseMax(out.corners[c]);
+  }
   return out;
 }
 
@@ -289,6 +296,11 @@ bool separatedAlong(const PosedBox& a, const PosedBox& b,
 }
 
 bool boxesMeet(const PosedBox& a, const PosedBox& b) {
+  // Boxes whose bounds are apart do not meet: most pairs of a crowd's
+  // fields (isk/implicit_crowd.hpp) are settled here, before the 15 axes.
+  if ((a.hi.array() < b.lo.array()).any() ||
+      (b.hi.array() < a.lo.array()).any())
+    return false;
   // Separating axes of two parallelepipeds: the face normals of each and
   // the cross products of their edges.
   for (const PosedBox* box : {&a, &b})
@@ -338,32 +350,65 @@ FieldNeighbourhoods fieldNeighbourhoods(
   boxes.reserve(field_count);
   for (int i = 0; i < field_count; ++i)
     boxes.push_back(posedBox(grids.grids[i], to_bone[i], 1e-3f));
-  std::vector<char> meet(static_cast<size_t>(field_count) * field_count, 0);
-  for (int h = 0; h < field_count; ++h)
-    for (int i = h; i < field_count; ++i)
-      meet[static_cast<size_t>(h) * field_count + i] =
-          meet[static_cast<size_t>(i) * field_count + h] =
-              i == h || boxesMeet(boxes[h], boxes[i]);
+  // Sweep and prune along x: boxes sorted by their lowest x, each tested
+  // only against those that start before it ends (a box starting later is
+  // apart from it along x, which boxesMeet would find first). A bound that
+  // is not a number (a pose past float range) prunes nothing.
+  auto low_x = [&](int i) {
+    const float x = boxes[i].lo.x();
+    return std::isnan(x) ? -std::numeric_limits<float>::infinity() : x;
+  };
+  auto high_x = [&](int i) {
+    const float x = boxes[i].hi.x();
+    return std::isnan(x) ? std::numeric_limits<float>::infinity() : x;
+  };
+  std::vector<int> by_low_x(field_count);
+  for (int i = 0; i < field_count; ++i) by_low_x[i] = i;
+  std::sort(by_low_x.begin(), by_low_x.end(), [&](int a, int b) {
+    return low_x(a) < low_x(b) || (low_x(a) == low_x(b) && a < b);
+  });
+  std::vector<std::vector<int>> listed(field_count);
+  for (int a = 0; a < field_count; ++a) {
+    const int h = by_low_x[a];
+    listed[h].push_back(h);
+    const float end = high_x(h);
+    for (int b = a + 1; b < field_count && !(low_x(by_low_x[b]) > end); ++b) {
+      const int i = by_low_x[b];
+      if (boxesMeet(boxes[std::min(h, i)], boxes[std::max(h, i)])) {
+        listed[h].push_back(i);
+        listed[i].push_back(h);
+      }
+    }
+  }
+  // The blended pairs by their first field.
+  std::vector<std::vector<int>> pairs_of(field_count);
+  for (size_t k = 0; k < mesh.partner_pairs.size(); ++k) {
+    const TrackingMesh::PartnerPair& pair = mesh.partner_pairs[k];
+    if (pair.field_a >= 0 && pair.field_a < field_count && pair.field_b >= 0 &&
+        pair.field_b < field_count)
+      pairs_of[pair.field_a].push_back(static_cast<int>(k));
+  }
+  std::vector<int> listed_in(field_count, -1);  // h whose list holds it
   FieldNeighbourhoods out;
   out.offsets.assign(1, 0);
   out.pair_offsets.assign(1, 0);
   for (int h = 0; h < field_count; ++h) {
-    const char* listed = &meet[static_cast<size_t>(h) * field_count];
-    for (int i = 0; i < field_count; ++i) {
-      if (!listed[i]) continue;
+    std::vector<int>& fields = listed[h];
+    std::sort(fields.begin(), fields.end());
+    for (const int i : fields) {
+      listed_in[i] = h;
       bool partner = i == h;
       for (int k = 0; with_partners && k < kMax; ++k)
         partner = partner || partners[static_cast<size_t>(h) * kMax + k] == i;
       out.entries.push_back(partner ? i | FieldNeighbourhoods::kPartner : i);
     }
     out.offsets.push_back(static_cast<int>(out.entries.size()));
-    for (size_t k = 0; k < mesh.partner_pairs.size(); ++k) {
-      const TrackingMesh::PartnerPair& pair = mesh.partner_pairs[k];
-      if (pair.field_a >= 0 && pair.field_a < field_count &&
-          pair.field_b >= 0 && pair.field_b < field_count &&
-          listed[pair.field_a] && listed[pair.field_b])
-        out.pairs.push_back(static_cast<int>(k));
-    }
+    const size_t first_pair = out.pairs.size();
+    for (const int a : fields)
+      for (const int k : pairs_of[a])
+        if (listed_in[mesh.partner_pairs[k].field_b] == h)
+          out.pairs.push_back(k);
+    std::sort(out.pairs.begin() + first_pair, out.pairs.end());
     out.pair_offsets.push_back(static_cast<int>(out.pairs.size()));
   }
   return out;
