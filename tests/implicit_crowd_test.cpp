@@ -1,0 +1,269 @@
+// isk::ImplicitCrowd (isk/implicit_crowd.hpp): several instances of one
+// character skinned by the same launches. Instances apart from each other
+// come out as an ImplicitSkinner gives each alone, on procedural rigs (with
+// union, blend and bulge joints) and on the assets; overlapping instances
+// stop at each other; bad input is a clear error.
+#include "isk/implicit_crowd.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "isk/error.hpp"
+#include "isk/procedural.hpp"
+#include "test_support.hpp"
+
+namespace isk {
+namespace {
+
+std::shared_ptr<const ImplicitFields> sharedFields(const std::string& name) {
+  return std::shared_ptr<const ImplicitFields>(&test::implicitFieldsOf(name),
+                                               [](const ImplicitFields*) {});
+}
+
+// `pose` moved by `offset` (model units) in the scene.
+TransformList placed(const TransformList& pose, const Eigen::Vector3f& offset) {
+  TransformList out = pose;
+  for (Eigen::Affine3f& t : out) t.pretranslate(offset);
+  return out;
+}
+
+// Rows [first, first + count) of m.
+Matrix3Xf rowsOf(const Matrix3Xf& m, int first, int count) {
+  return m.middleRows(first, count);
+}
+
+// `instances` instances of rig, each at its own pose of the clip and
+// `spacing` diagonals apart along x, skinned by one crowd and each by its
+// own ImplicitSkinner on the same device: the same positions and normals,
+// vertex by vertex (the same kernels on the same data; 1e-6 of the diagonal
+// allows a device that vectorizes the two launches differently).
+void checkInstancesApart(const Rig& rig,
+                         std::shared_ptr<const ImplicitFields> fields,
+                         int instances,
+                         const ImplicitSkinnerOptions& options = {}) {
+  const auto context = test::sharedContext();
+  const float diagonal = rig.boundingBoxDiagonal();
+  const std::vector<TransformList> clip = test::clipPoses(rig, instances + 1);
+  std::vector<TransformList> poses;
+  for (int i = 0; i < instances; ++i)
+    poses.push_back(
+        placed(clip[i + 1], Eigen::Vector3f(3.f * diagonal * i, 0.f, 0.f)));
+  ImplicitCrowd crowd(context, rig, fields, instances, options);
+  EXPECT_EQ(crowd.instanceCount(), instances);
+  EXPECT_EQ(crowd.vertexCount(), rig.mesh.vertexCount());
+  crowd.run(poses);
+  Matrix3Xf positions, normals;
+  crowd.readPositions(positions);
+  crowd.readNormals(normals);
+  const int v = rig.mesh.vertexCount();
+  ASSERT_EQ(positions.rows(), static_cast<Eigen::Index>(v) * instances);
+  ASSERT_EQ(normals.rows(), positions.rows());
+  ImplicitSkinner alone(context, rig, fields, options);
+  int contacts = 0;
+  for (int i = 0; i < instances; ++i) {
+    SCOPED_TRACE("instance " + std::to_string(i));
+    alone.run(poses[i]);
+    Matrix3Xf own_positions, own_normals;
+    alone.readPositions(own_positions);
+    alone.readNormals(own_normals);
+    contacts += alone.contactCount();
+    const test::RowMismatch p =
+        test::largestRowDistance(rowsOf(positions, i * v, v), own_positions);
+    EXPECT_LE(p.distance, 1e-6f * diagonal)
+        << "first largest position mismatch at vertex " << p.row;
+    const test::RowMismatch n =
+        test::largestRowDistance(rowsOf(normals, i * v, v), own_normals);
+    EXPECT_LE(n.distance, 1e-5f)
+        << "largest normal mismatch at vertex " << n.row;
+  }
+  EXPECT_EQ(crowd.contactCount(), contacts);
+  EXPECT_TRUE(positions.allFinite() && normals.allFinite());
+}
+
+TEST(ImplicitCrowd, InstancesApartMatchTheirOwnSkinnerOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    checkInstancesApart(test::rigNamed(name), sharedFields(name), 3);
+  }
+}
+
+TEST(ImplicitCrowd, InstancesApartMatchTheirOwnSkinnerWithBlendAndBulge) {
+  // Blend and bulge pairs: the crowd's pairs, tables and controllers are
+  // the instance's, shifted to its fields and joints.
+  for (const CompositionOperator op :
+       {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
+    SCOPED_TRACE(op == CompositionOperator::kBlend ? "blend" : "bulge");
+    const Rig& arm = test::rigNamed("arm");
+    ImplicitSkinnerOptions options;
+    options.fields.composition.default_operator = op;
+    const auto fields = std::make_shared<const ImplicitFields>(
+        buildImplicitFields(arm, options.fields));
+    ASSERT_FALSE(fields->composition.blended_pairs.empty());
+    checkInstancesApart(arm, fields, 2, options);
+  }
+}
+
+TEST(ImplicitCrowd, InstancesApartMatchTheirOwnSkinnerOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("crowds of the assets");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    checkInstancesApart(test::rigNamed(name), sharedFields(name), 2);
+  }
+}
+
+TEST(ImplicitCrowd, ReplicatedTrackingMeshShiftsEveryIndex) {
+  const Rig& arm = test::rigNamed("arm");
+  const TrackingMesh one =
+      TrackingMesh::build(arm.mesh, test::implicitFieldsOf("arm"));
+  const int joints = arm.skeleton.jointCount();
+  const TrackingMesh two = replicateTrackingMesh(one, 2, joints);
+  const int v = one.vertexCount();
+  ASSERT_EQ(two.vertexCount(), 2 * v);
+  EXPECT_EQ(two.field_count, 2 * one.field_count);
+  EXPECT_EQ(two.diagonal, one.diagonal);
+  EXPECT_EQ(two.trackedCount(), 2 * one.trackedCount());
+  ASSERT_EQ(two.march_order.size(), 2 * one.march_order.size());
+  for (size_t k = 0; k < one.march_order.size(); ++k)
+    ASSERT_EQ(two.march_order[one.march_order.size() + k],
+              one.march_order[k] + v)
+        << "march slot " << k;
+  for (int u = 0; u < v; ++u) {
+    ASSERT_EQ(two.rings.representative[v + u], one.rings.representative[u] + v)
+        << "vertex " << u;
+    ASSERT_EQ(two.home_field[v + u],
+              one.home_field[u] < 0 ? -1 : one.home_field[u] + one.field_count)
+        << "vertex " << u;
+    const uint32_t a = one.rings.offsets[u], b = one.rings.offsets[u + 1];
+    ASSERT_EQ(two.rings.offsets[v + u + 1] - two.rings.offsets[v + u], b - a);
+    for (uint32_t k = a; k < b; ++k)
+      ASSERT_EQ(two.rings.neighbours[two.rings.offsets[v + u] + (k - a)],
+                one.rings.neighbours[k] + v)
+          << "vertex " << u;
+  }
+  for (int t = 0; t < one.triangles.rows(); ++t)
+    ASSERT_TRUE((two.triangles.row(one.triangles.rows() + t).array() ==
+                 one.triangles.row(t).array() + v)
+                    .all())
+        << "triangle " << t;
+  for (size_t k = 0; k < one.partner_pairs.size(); ++k) {
+    const auto& a = one.partner_pairs[k];
+    const auto& b = two.partner_pairs[one.partner_pairs.size() + k];
+    EXPECT_EQ(b.field_a, a.field_a + one.field_count);
+    EXPECT_EQ(b.joint_b, a.joint_b + joints);
+  }
+  EXPECT_THROW(replicateTrackingMesh(one, 0, joints), Error);
+}
+
+TEST(ImplicitCrowd, OverlappingInstancesStopAtEachOther) {
+  // Two cylinders side by side, their surfaces overlapping by half a
+  // radius: skinned alone, each passes through the other; in one crowd the
+  // vertices of each that enter the other stop at a contact.
+  const Rig& cylinder = test::rigNamed("cylinder");
+  const auto fields = sharedFields("cylinder");
+  const TransformList identity(cylinder.skeleton.jointCount(),
+                               Eigen::Affine3f::Identity());
+  const std::vector<TransformList> poses = {
+      identity, placed(identity, Eigen::Vector3f(0.f, 1.5f, 0.f))};
+  ImplicitCrowd crowd(test::sharedContext(), cylinder, fields, 2);
+  crowd.run(poses);
+  ImplicitSkinner alone(test::sharedContext(), cylinder, fields);
+  int alone_contacts = 0;
+  for (const TransformList& pose : poses) {
+    alone.run(pose);
+    alone_contacts += alone.contactCount();
+  }
+  EXPECT_GT(crowd.contactCount(), alone_contacts + 100);
+  Matrix3Xf positions;
+  crowd.readPositions(positions);
+  ASSERT_TRUE(positions.allFinite());
+  // Instance 1's vertices no longer reach as deep into instance 0: its
+  // lowest vertex (y, the axis they are apart on), 0.5 below instance 0's
+  // top (y = 1) when alone, stops near the surface where the two fields
+  // are equal (y = 0.75).
+  const int v = cylinder.mesh.vertexCount();
+  const float lowest = rowsOf(positions, v, v).col(1).minCoeff();
+  alone.run(poses[1]);
+  Matrix3Xf own;
+  alone.readPositions(own);
+  EXPECT_LT(own.col(1).minCoeff(), 0.6f);
+  EXPECT_GT(lowest, 0.65f);
+  // And instance 0's highest, symmetrically, stops below its own top.
+  const float highest = rowsOf(positions, 0, v).col(1).maxCoeff();
+  EXPECT_LT(highest, 0.85f);
+}
+
+TEST(ImplicitCrowd, BadInputIsAClearError) {
+  const Rig& arm = test::rigNamed("arm");
+  const auto context = test::sharedContext();
+  const auto fields = sharedFields("arm");
+  auto message = [](const auto& call) -> std::string {
+    try {
+      call();
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+      return e.what();
+    }
+    ADD_FAILURE() << "no isk::Error";
+    return "";
+  };
+  EXPECT_NE(message([&] {
+              ImplicitCrowd(context, arm, fields, 0);
+            }).find("0 instances"),
+            std::string::npos);
+  EXPECT_NE(
+      message([&] { ImplicitCrowd(context, arm, 0); }).find("0 instances"),
+      std::string::npos);
+  EXPECT_NE(message([&] {
+              ImplicitCrowd(context, test::rigNamed("finger"), fields, 2);
+            }).find("built for another rig"),
+            std::string::npos);
+  const int field_count = fields->grids.fieldCount();
+  EXPECT_NE(message([&] {
+              ImplicitCrowd(context, arm, fields, 65535 / field_count + 1);
+            }).find("fields a crowd can hold"),
+            std::string::npos);
+
+  ImplicitCrowd crowd(context, arm, fields, 2);
+  EXPECT_NE(message([&] {
+              Matrix3Xf out;
+              crowd.readPositions(out);
+            }).find("before run()"),
+            std::string::npos);
+  const TransformList pose = test::clipPoses(arm, 2).back();
+  EXPECT_NE(message([&] {
+              crowd.run({pose});
+            }).find("1 poses given for a crowd of 2 instances"),
+            std::string::npos);
+  TransformList short_pose(pose.begin(), pose.end() - 1);
+  EXPECT_NE(message([&] {
+              crowd.run({pose, short_pose});
+            }).find("instance 1:"),
+            std::string::npos);
+  TransformList bad = pose;
+  bad[1].matrix()(0, 3) = std::numeric_limits<float>::quiet_NaN();
+  const std::string nan = message([&] { crowd.run({bad, pose}); });
+  EXPECT_NE(nan.find("instance 0: the transform of joint 1"), std::string::npos)
+      << nan;
+  EXPECT_NE(nan.find(arm.skeleton.joints[1].name), std::string::npos) << nan;
+  // A good frame after the errors.
+  crowd.run({pose, pose});
+  Matrix3Xf positions;
+  crowd.readPositions(positions);
+  EXPECT_TRUE(positions.allFinite());
+  ImplicitCrowd moved = std::move(crowd);
+  EXPECT_NE(message([&] {
+              crowd.run({pose, pose});
+            }).find("moved from"),
+            std::string::npos);
+  moved.readPositions(positions);
+  EXPECT_EQ(positions.rows(), 2 * arm.mesh.vertexCount());
+}
+
+}  // namespace
+}  // namespace isk
