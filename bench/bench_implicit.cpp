@@ -34,6 +34,14 @@
 // clip by the golden ratio: the few frames of a large model's run are spread
 // over the whole clip, and the backends see the same sequence.
 //
+// Crowd/<model>/x<n>:<d>: n instances of the model, each at its own pose
+// of the clip and apart from the others, skinned by one isk::ImplicitCrowd
+// (every stage one launch over all instances) and by n ImplicitSkinners (one
+// per instance, the same fields), the two frames in turn: counters crowd_ms
+// and separate_ms (wall time of the whole crowd's frame with its read-backs,
+// means over the iterations) and separate_over_crowd, their ratio (above 1:
+// the crowd pays).
+//
 //   isk_bench --benchmark_filter='^Implicit/'
 //   isk_bench --benchmark_filter='^Levers/'
 //   isk_bench --benchmark_filter='^Scaling/'
@@ -50,6 +58,7 @@
 
 #include "bench_support.hpp"
 #include "isk/cl/skinning.hpp"
+#include "isk/implicit_crowd.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/mesh_metrics.hpp"
 
@@ -373,6 +382,78 @@ void implicitReference(benchmark::State& state, const Case& c) {
   state.SetLabel("CPU reference, 1 thread");
 }
 
+// Crowd/<model>/x<n>:<d> (see the top of this file).
+void crowdAgainstSeparate(benchmark::State& state, const Case& c, int device,
+                          int instances) {
+  const Rig& rig = c.rig();
+  const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
+  ImplicitCrowd crowd(context(device), rig, fields, instances);
+  std::vector<ImplicitSkinner> separate;
+  for (int i = 0; i < instances; ++i)
+    separate.emplace_back(context(device), rig, fields);
+  // Instance i at its own place: 2 diagonals apart on a square grid.
+  const int side = static_cast<int>(std::ceil(std::sqrt(instances)));
+  const float apart = 2.f * boundingBoxDiagonal(rig.mesh.positions);
+  auto poses = [&](int64_t frame) {
+    std::vector<TransformList> out;
+    for (int i = 0; i < instances; ++i) {
+      TransformList pose = c.pose(rig, frame * instances + i);
+      const Eigen::Vector3f at(apart * (i % side), 0.f, apart * (i / side));
+      for (Eigen::Affine3f& t : pose) t.pretranslate(at);
+      out.push_back(std::move(pose));
+    }
+    return out;
+  };
+  Matrix3Xf positions, normals;
+  auto crowd_frame = [&](const std::vector<TransformList>& p) {
+    crowd.run(p);
+    crowd.readPositions(positions);
+    crowd.readNormals(normals);
+    benchmark::DoNotOptimize(positions.data());
+    benchmark::DoNotOptimize(normals.data());
+  };
+  auto separate_frame = [&](const std::vector<TransformList>& p) {
+    for (int i = 0; i < instances; ++i) {
+      separate[i].run(p[i]);
+      separate[i].readPositions(positions);
+      separate[i].readNormals(normals);
+      benchmark::DoNotOptimize(positions.data());
+      benchmark::DoNotOptimize(normals.data());
+    }
+  };
+  crowd_frame(poses(0));  // PoCL compiles at the first launch
+  separate_frame(poses(0));
+  double crowd_ms = 0, separate_ms = 0;
+  StageSums times;
+  int64_t frame = 0;
+  for (auto _ : state) {
+    const std::vector<TransformList> p = poses(frame);
+    framesInTurn(
+        frame,
+        [&](bool crowd_turn) {
+          if (crowd_turn)
+            crowd_frame(p);
+          else
+            separate_frame(p);
+        },
+        crowd_ms, separate_ms);
+    times.add(crowd.lastTimes());
+    ++frame;
+  }
+  const double n = static_cast<double>(std::max<int64_t>(frame, 1));
+  state.counters["vertices"] =
+      static_cast<double>(rig.mesh.vertexCount()) * instances;
+  state.counters["joints"] = rig.skeleton.skinJointCount();
+  state.counters["instances"] = instances;
+  state.counters["crowd_ms"] = crowd_ms / n;
+  state.counters["separate_ms"] = separate_ms / n;
+  state.counters["separate_over_crowd"] =
+      crowd_ms > 0 ? separate_ms / crowd_ms : 0;
+  state.counters["projection_ms"] = times.projection / n;
+  state.counters["smoothing_ms"] = times.smoothing / n;
+  state.SetLabel(devices()[device].describe());
+}
+
 void registerCase(const std::string& prefix, const Case& c, bool reference,
                   const std::string& implicit_backend, double min_time) {
   for (const ClDeviceInfo& device : devices()) {
@@ -425,6 +506,21 @@ void registerImplicitBenchmarks() {
             ->Unit(benchmark::kMillisecond)
             ->UseRealTime()
             ->MinTime(kMinTimeS);
+  }
+  // Crowds of the models up to the 7.8k-vertex human: where a frame is a
+  // few milliseconds, launches and waits are a large part of it.
+  for (const Model& model : models()) {
+    if (!available(model) || model.subdivision_levels > 0) continue;
+    for (const ClDeviceInfo& device : devices())
+      for (const int instances : {4, 16})
+        registerGuarded(
+            ("Crowd/" + model.name + "/" +
+             onDevice("x" + std::to_string(instances), device.index))
+                .c_str(),
+            crowdAgainstSeparate, modelCase(model), device.index, instances)
+            ->Unit(benchmark::kMillisecond)
+            ->UseRealTime()
+            ->MinTime(kScalingMinTimeS);
   }
   constexpr int kFixedBones = 4, kFixedVertices = 40000;
   const std::pair<int, const char*> sizes[] = {

@@ -166,7 +166,7 @@ class Results:
                 m = re.fullmatch(r"(opencl|opencl-buffer|opencl-image|dqs|paired|"
                                  r"implicit|cold|warm|in-process|all|"
                                  r"no-neighbourhoods|no-march-order|"
-                                 r"no-occupied-cells):(\d+)",
+                                 r"no-occupied-cells|x\d+):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
                     self.devices[int(m.group(2))] = {
@@ -682,6 +682,52 @@ def levers_section(results):
     return lines
 
 
+def crowd_section(results):
+    runs = results.family("Crowd")
+    lines = ["## Crowds: several characters per launch (`Crowd/`)", ""]
+    if not runs:
+        return lines + ["Not run (no `Crowd/` benchmark in this JSON).", ""]
+    lines += ["n instances of a model, each at its own pose of the clip and "
+              "apart from the others, skinned by one `isk::ImplicitCrowd` "
+              "(every stage of the frame one launch over the vertices of "
+              "all instances, one read-back) and by n `ImplicitSkinner`s "
+              "(one per instance, the same fields), the two frames of the "
+              "same poses in turn. The frames are the same vertex for "
+              "vertex (tests check it). ms/frame is the wall time of the "
+              "whole crowd's frame with its read-backs; 'separate / crowd' "
+              "above 1 means the crowd pays.", ""]
+    models = {}
+    for key, run in runs.items():
+        if len(key) == 3:
+            models.setdefault(key[1], {})[key[2]] = run
+    order = model_order(results)
+    devices = sorted({split_device(b)[1] for m in models.values() for b in m
+                      if split_device(b)[1] is not None})
+    for d in devices:
+        rows = []
+        for model in ordered(models, order):
+            sizes = sorted(
+                (int(split_device(b)[0][1:]), run)
+                for b, run in models[model].items()
+                if split_device(b)[1] == d
+                and re.fullmatch(r"x\d+", split_device(b)[0]))
+            for n, run in sizes:
+                crowd_ms = run.get("crowd_ms")
+                rows.append([model, str(n), count(run.get("vertices")),
+                             ms(crowd_ms),
+                             ms(crowd_ms / n if crowd_ms else None),
+                             ms(run.get("separate_ms")),
+                             ratio(run.get("separate_over_crowd"))])
+        if rows:
+            lines += [f"### {results.device_name(d)} (OpenCL device {d})",
+                      ""]
+            lines += table(["model", "instances", "vertices (all)",
+                            "crowd ms/frame", "ms per instance",
+                            "separate ms/frame", "separate / crowd"], rows,
+                           ["l", "r", "r", "r", "r", "r", "r"])
+    return lines
+
+
 def paper_section(results):
     models = implicit_models(results)
     lines = ["## The paper's Table 1 beside ours", ""]
@@ -1103,6 +1149,8 @@ def recorded_section(path, results):
         body += implicit_section(results)
     if results.family("Levers"):
         body += levers_section(results)
+    if results.family("Crowd"):
+        body += crowd_section(results)
     if results.family("Frame"):
         body += frame_section(results)
     if results.family("Scaling"):
@@ -1125,6 +1173,7 @@ def render(data, command_text, elapsed=None, recorded=()):
     lines += models_section(results)
     lines += implicit_section(results)
     lines += levers_section(results)
+    lines += crowd_section(results)
     lines += paper_section(results)
     lines += frame_section(results)
     lines += scaling_section(results)

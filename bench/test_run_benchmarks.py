@@ -64,6 +64,27 @@ class Render(unittest.TestCase):
         self.assertTrue(rows[0].endswith("| 1.25x | n/a |"), rows[0])
         self.assertNotIn("nan", text.lower())
 
+    def test_crowds_by_instance_count(self):
+        data = document([
+            run("Crowd/CesiumMan/x16:0/min_time:1.000", 80.0,
+                vertices=41792, instances=16, crowd_ms=32.0,
+                separate_ms=48.0, separate_over_crowd=1.5),
+            run("Crowd/CesiumMan/x4:0/min_time:1.000", 20.0,
+                vertices=10448, instances=4, crowd_ms=8.0,
+                separate_ms=10.0, separate_over_crowd=1.25),
+        ])
+        text = run_benchmarks.render(data, "cmd")
+        self.assertIn("## Crowds: several characters per launch", text)
+        rows = [l for l in text.splitlines() if l.startswith("| CesiumMan |")]
+        self.assertEqual(rows, [
+            "| CesiumMan | 4 | 10,448 | 8.000 | 2.000 | 10.00 | 1.25x |",
+            "| CesiumMan | 16 | 41,792 | 32.00 | 2.000 | 48.00 | 1.50x |"],
+            text)
+        # A recorded run shows its crowds too.
+        recorded = run_benchmarks.render(document([]), "cmd",
+                                         recorded=[("gpu.json", data)])
+        self.assertIn("### Crowds: several characters per launch", recorded)
+
     def test_levers_interleaved_use_their_own_ratio(self):
         # Interleaved runs: two frames per iteration, their own counters.
         data = document([
