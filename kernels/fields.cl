@@ -7,27 +7,31 @@
 // (composePair). Host class: lib/src/cl/field_evaluation.cpp.
 //
 // Storage, chosen at build time by ISK_FIELDS_IMAGE (0 when undefined):
-//   1: one read-only image3d_t atlas, CL_RGBA / CL_FLOAT, every field one
-//      N^3 tile of it (tiles side by side in x, y and z; field i at tile
-//      (i % tx, (i / tx) % ty, i / (tx * ty))); the 8 texels around
+//   1: one read-only image3d_t atlas, CL_RGBA / CL_FLOAT, every grid one
+//      N^3 tile of it (tiles side by side in x, y and z; grid g at tile
+//      (g % tx, (g / tx) % ty, g / (tx * ty))); the 8 texels around
 //      tile_origin + u are read unfiltered and interpolated here, in the
 //      buffer's order: hardware filtering is not used because GPUs weight
 //      with 8-bit fractions (NVIDIA: value errors near 1e-3, gradients 5%),
 //      too coarse to march back to an iso value;
-//   0: a __global const float4* buffer, field i at offset i * N^3, node
+//   0: a __global const float4* buffer, grid g at offset g * N^3, node
 //      (x, y, z) at x + N * (y + N * z), interpolated trilinearly here exactly
 //      as FieldGrid::sampleLocal does it. With ISK_FIELDS_HALF=1 (grids
 //      rounded to half precision, isk::roundGridsToHalf) the buffer holds
 //      4 halves per node instead, same layout, read by vload_half4 (exact)
 //      and interpolated in float as the reference does.
 // A node's float4 is (value, gradient x y z), gradient in the bone frame.
-// field_cells: per field ceil((N-1)^3 / 32) uint words, one bit per grid
+// Field i samples grid i, except in a crowd (below, param [3].w).
+// field_cells: per grid ceil((N-1)^3 / 32) uint words, one bit per grid
 // cell (isk::occupiedCells): clear when the cell's 8 nodes are all zero, so
 // that a sample there is zero without loading them.
 //
 // Field parameters: ISK_FIELD_PARAM_STRIDE float4 per field,
 //   [0..2] rows of the model -> bone 3x4 matrix (per pose);
-//   [3]    box_min.xyz (bone frame), w unused;
+//   [3]    box_min.xyz (bone frame), w the index of the field's grid in
+//          the field data and the occupied cells (as a float): the field's
+//          own index, or, in a crowd of instances (isk::ImplicitCrowd), the
+//          grid the instances share;
 //   [4]    1 / spacing, xyz, w = N - 1 (last node index, as a float);
 //   [5]    image path: tile origin + 0.5 (texels), xyz (the texel index is
 //          its integer part); unused by the buffer;
@@ -201,11 +205,12 @@ ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
   // A cell whose 8 nodes are all zero interpolates to zero: its grid
   // loads are skipped (most of a support box lies outside the field's
   // support).
+  const uint grid = (uint)params[ISK_FIELD_PARAM_STRIDE * field + 3].w;
   const uint cells = (uint)(resolution - 1);
   const int3 c = min(convert_int3_rtz(u), (int3)(resolution - 2));
   const uint cell = (uint)c.x + cells * ((uint)c.y + cells * (uint)c.z);
   const uint words = (cells * cells * cells + 31u) / 32u;
-  if (!((field_cells[field * words + (cell >> 5)] >> (cell & 31u)) & 1u))
+  if (!((field_cells[grid * words + (cell >> 5)] >> (cell & 31u)) & 1u))
     return (float4)(0.0f);
 #if ISK_FIELDS_IMAGE
   const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
@@ -214,10 +219,10 @@ ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
 #else
   const size_t n = (size_t)resolution;
 #if ISK_FIELDS_HALF
-  return trilinear_half_nodes(field_data, (size_t)field * n * n * n,
+  return trilinear_half_nodes(field_data, (size_t)grid * n * n * n,
                               resolution, u);
 #else
-  return trilinear_nodes(field_data + (size_t)field * n * n * n, resolution,
+  return trilinear_nodes(field_data + (size_t)grid * n * n * n, resolution,
                          u);
 #endif
 #endif

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "isk/cl/field_evaluation.hpp"
 #include "isk/error.hpp"
 #include "isk/procedural.hpp"
 #include "test_support.hpp"
@@ -64,6 +65,12 @@ void checkInstancesApart(const Rig& rig,
   ASSERT_EQ(positions.rows(), static_cast<Eigen::Index>(v) * instances);
   ASSERT_EQ(normals.rows(), positions.rows());
   ImplicitSkinner alone(context, rig, fields, options);
+  // The grids are stored once for every instance.
+  EXPECT_EQ(crowd.fieldEvaluation().fieldCount(),
+            instances * fields->grids.fieldCount());
+  EXPECT_EQ(crowd.fieldEvaluation().gridCount(), fields->grids.fieldCount());
+  EXPECT_EQ(crowd.fieldEvaluation().fieldBytes(),
+            alone.fieldEvaluation().fieldBytes());
   int contacts = 0;
   for (int i = 0; i < instances; ++i) {
     SCOPED_TRACE("instance " + std::to_string(i));
@@ -106,6 +113,63 @@ TEST(ImplicitCrowd, InstancesApartMatchTheirOwnSkinnerWithBlendAndBulge) {
     ASSERT_FALSE(fields->composition.blended_pairs.empty());
     checkInstancesApart(arm, fields, 2, options);
   }
+}
+
+TEST(ImplicitCrowd, InstancesApartMatchTheirOwnSkinnerForEveryStorage) {
+  // Images (GPUs) and buffers, float and half grids: each reads the shared
+  // grid of its field.
+  const Rig& arm = test::rigNamed("arm");
+  auto half = std::make_shared<ImplicitFields>(test::implicitFieldsOf("arm"));
+  useHalfPrecisionGrids(*half, arm);
+  for (const FieldStorage storage :
+       {FieldStorage::kImage, FieldStorage::kBuffer})
+    for (const bool halves : {false, true}) {
+      SCOPED_TRACE(std::string(fieldStorageName(storage)) +
+                   (halves ? ", half grids" : ", float grids"));
+      ImplicitSkinnerOptions options;
+      options.storage = storage;
+      checkInstancesApart(arm, halves ? half : sharedFields("arm"), 3, options);
+    }
+}
+
+TEST(ImplicitCrowd, FieldEvaluationOfInstancesMatchesEachAlone) {
+  // The host path of ClFieldEvaluation with instances: instance k's fields
+  // at points give what one instance's evaluation gives with its pose.
+  const Rig& arm = test::rigNamed("arm");
+  const ImplicitFields& fields = test::implicitFieldsOf("arm");
+  const auto context = test::sharedContext();
+  const int joints = arm.skeleton.jointCount();
+  const std::vector<TransformList> clip = test::clipPoses(arm, 3);
+  const Eigen::Vector3f offset(10.f, 0.f, 0.f);
+  const TransformList second = placed(clip[2], offset);
+  TransformList both = clip[1];
+  both.insert(both.end(), second.begin(), second.end());
+  ClFieldEvaluation crowd(context, fields.grids, joints, FieldStorage::kAuto,
+                          &fields.composition, 2);
+  ClFieldEvaluation one(context, fields.grids, joints, FieldStorage::kAuto,
+                        &fields.composition);
+  EXPECT_EQ(crowd.jointCount(), 2 * joints);
+  EXPECT_EQ(crowd.pairCount(), 2 * one.pairCount());
+  Matrix3Xf points = arm.mesh.positions;
+  points.rowwise() += offset.transpose();
+  Matrix4Xf composed, per_field, own_composed, own_per_field;
+  crowd.evaluate(both, points, composed, &per_field);
+  one.evaluate(second, points, own_composed, &own_per_field);
+  const int f = fields.grids.fieldCount();
+  ASSERT_EQ(per_field.rows(), static_cast<Eigen::Index>(points.rows()) * 2 * f);
+  for (Eigen::Index p = 0; p < points.rows(); ++p) {
+    ASSERT_EQ(composed.row(p), own_composed.row(p)) << "point " << p;
+    for (int i = 0; i < f; ++i) {
+      ASSERT_EQ(per_field.row(p * 2 * f + f + i), own_per_field.row(p * f + i))
+          << "point " << p << ", field " << i;
+      ASSERT_EQ(per_field(p * 2 * f + i, 0), 0.f)  // instance 0 is far
+          << "point " << p << ", field " << i;
+    }
+  }
+  EXPECT_GT(composed.col(0).maxCoeff(), 0.5f);
+  EXPECT_THROW(ClFieldEvaluation(context, fields.grids, joints,
+                                 FieldStorage::kAuto, nullptr, 0),
+               Error);
 }
 
 TEST(ImplicitCrowd, InstancesApartMatchTheirOwnSkinnerOnAssets) {

@@ -87,45 +87,6 @@ SkinWeights repeatedWeights(const SkinWeights& weights, int copies,
   return out;
 }
 
-// The grids and the composition of `fields` for `copies` instances of a
-// character of `joints` joints: copy i's fields follow joint i * joints + j.
-// Operator tables and controllers are shared, not copied.
-struct CrowdFields {
-  FieldGridSet grids;
-  Composition composition;
-};
-
-CrowdFields repeatedFields(const ImplicitFields& fields, int copies,
-                           int joints) {
-  CrowdFields out;
-  const int field_count = fields.grids.fieldCount();
-  out.grids.resolution = fields.grids.resolution;
-  out.grids.precision = fields.grids.precision;
-  out.grids.grids.reserve(static_cast<size_t>(field_count) * copies);
-  for (int i = 0; i < copies; ++i)
-    for (FieldGrid g : fields.grids.grids) {
-      g.joint += i * joints;
-      out.grids.grids.push_back(std::move(g));
-    }
-  out.grids.field_of_joint =
-      shifted(fields.grids.field_of_joint, copies, field_count);
-  const Composition& c = fields.composition;
-  out.composition.controllers = c.controllers;
-  out.composition.tables = c.tables;
-  out.composition.table_resolution = c.table_resolution;
-  out.composition.warnings = c.warnings;
-  for (int i = 0; i < copies; ++i)
-    for (FieldPair p : c.pairs) {
-      p.joint += i * joints;
-      p.field_a += i * field_count;
-      p.field_b += i * field_count;
-      out.composition.pairs.push_back(p);
-    }
-  out.composition.blended_pairs =
-      shifted(c.blended_pairs, copies, static_cast<long long>(c.pairs.size()));
-  return out;
-}
-
 }  // namespace
 
 TrackingMesh replicateTrackingMesh(const TrackingMesh& mesh, int copies,
@@ -198,7 +159,6 @@ struct ImplicitCrowd::State {
   int instances = 0, vertices = 0, joints = 0;
   std::vector<std::string> joint_names;
   std::unique_ptr<const TrackingMesh> tracking_mesh;
-  CrowdFields crowd_fields;
   std::unique_ptr<ClSkinning> skinning;
   std::unique_ptr<ClFieldEvaluation> field_evaluation;
   std::unique_ptr<ClSurfaceTracking> tracking;
@@ -269,13 +229,13 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
   const TrackingMesh one = TrackingMesh::build(rig.mesh, *s.fields);
   s.tracking_mesh = std::make_unique<const TrackingMesh>(
       replicateTrackingMesh(one, instances, s.joints));
-  s.crowd_fields = repeatedFields(*s.fields, instances, s.joints);
   s.skinning = std::make_unique<ClSkinning>(
       s.context, repeatedMesh(rig.mesh, instances),
       repeatedWeights(rig.weights, instances, s.joints), s.joints * instances);
+  // The grids once, shared by the instances.
   s.field_evaluation = std::make_unique<ClFieldEvaluation>(
-      s.context, s.crowd_fields.grids, s.joints * instances, options.storage,
-      &s.crowd_fields.composition);
+      s.context, s.fields->grids, s.joints, options.storage,
+      &s.fields->composition, instances);
   s.tracking = std::make_unique<ClSurfaceTracking>(
       *s.field_evaluation, *s.tracking_mesh, options.tracking);
 }
@@ -370,6 +330,9 @@ const TrackingMesh& ImplicitCrowd::trackingMesh() const {
 }
 ClSurfaceTracking& ImplicitCrowd::tracking() {
   return *state("tracking", false).tracking;
+}
+ClFieldEvaluation& ImplicitCrowd::fieldEvaluation() {
+  return *state("fieldEvaluation", false).field_evaluation;
 }
 const ImplicitSkinnerOptions& ImplicitCrowd::options() const {
   return state("options", false).options;

@@ -17,9 +17,9 @@
 // so their skins stop at each other as parts of a body do (the contact of
 // section 5) instead of passing through.
 //
-// Memory: the device holds #instances copies of the character's grids
-// (ClFieldEvaluation::bytes() per instance) and of its per-vertex data; the
-// host builds the crowd's tracking mesh from one instance's (no welding
+// Memory: the device holds the character's grids and operator tables once,
+// shared by the instances, and #instances copies of its per-vertex data;
+// the host builds the crowd's tracking mesh from one instance's (no welding
 // across instances, whatever their rest positions).
 #pragma once
 
@@ -79,6 +79,7 @@ class ImplicitCrowd {
   const ImplicitFields& fields() const;      // one instance's
   const TrackingMesh& trackingMesh() const;  // the crowd's
   ClSurfaceTracking& tracking();
+  ClFieldEvaluation& fieldEvaluation();  // every instance's fields
   const ImplicitSkinnerOptions& options() const;
   int instanceCount() const;
   int vertexCount() const;  // #V of one instance

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "isk/error.hpp"
@@ -134,31 +135,59 @@ const char* fieldStorageName(FieldStorage storage) {
 ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
                                      const FieldGridSet& fields,
                                      int joint_count, FieldStorage storage,
-                                     const Composition* composition)
+                                     const Composition* composition,
+                                     int instances)
     : context_(std::move(context)),
-      field_count_(fields.fieldCount()),
-      resolution_(fields.resolution),
-      joint_count_(joint_count) {
+      grid_count_(fields.fieldCount()),
+      resolution_(fields.resolution) {
   if (!context_) invalid("no context");
+  if (instances < 1)
+    invalid(std::to_string(instances) + " instances, expected at least 1");
+  if (static_cast<long long>(grid_count_) * instances > (1 << 24) ||
+      static_cast<long long>(std::max(joint_count, 1)) * instances >
+          std::numeric_limits<int>::max())
+    invalid(std::to_string(instances) + " instances of " +
+            std::to_string(grid_count_) + " fields and " +
+            std::to_string(joint_count) + " joints are too many");
+  field_count_ = grid_count_ * instances;
+  joint_count_ = joint_count * instances;
   validateFields(fields, joint_count);
   if (composition) {
-    validateComposition(*composition, field_count_);
-    pair_count_ = static_cast<int>(composition->blended_pairs.size());
+    validateComposition(*composition, grid_count_);
+    pair_count_ =
+        static_cast<int>(composition->blended_pairs.size()) * instances;
     table_count_ = static_cast<int>(composition->tables.size());
     table_resolution_ = composition->table_resolution;
   }
+  // Every instance's fields: instance k's follow joint k * joint_count + j.
   layout_.resolution = fields.resolution;
-  layout_.field_of_joint = fields.field_of_joint;
   layout_.precision = fields.precision;
-  layout_.grids.reserve(fields.grids.size());
-  for (const FieldGrid& g : fields.grids) {
-    FieldGrid meta;
-    meta.joint = g.joint;
-    meta.resolution = g.resolution;
-    meta.bone_to_model = g.bone_to_model;
-    meta.box_min = g.box_min;
-    meta.box_max = g.box_max;
-    layout_.grids.push_back(std::move(meta));
+  layout_.grids.reserve(static_cast<size_t>(field_count_));
+  for (int k = 0; k < instances; ++k) {
+    for (const int f : fields.field_of_joint)
+      layout_.field_of_joint.push_back(f < 0 ? f : f + k * grid_count_);
+    for (const FieldGrid& g : fields.grids) {
+      FieldGrid meta;
+      meta.joint = g.joint + k * joint_count;
+      meta.resolution = g.resolution;
+      meta.bone_to_model = g.bone_to_model;
+      meta.box_min = g.box_min;
+      meta.box_max = g.box_max;
+      layout_.grids.push_back(std::move(meta));
+    }
+  }
+  if (composition) {  // the pairs of every instance
+    for (int k = 0; k < instances; ++k) {
+      for (FieldPair p : composition->pairs) {
+        p.joint += k * joint_count;
+        p.field_a += k * grid_count_;
+        p.field_b += k * grid_count_;
+        composition_layout_.pairs.push_back(p);
+      }
+      for (const int b : composition->blended_pairs)
+        composition_layout_.blended_pairs.push_back(
+            b + k * static_cast<int>(composition->pairs.size()));
+    }
   }
   chooseStorage(storage, fields);
   half_ = fields.precision == GridPrecision::kHalf &&
@@ -177,14 +206,16 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
   // Static parameters; the rows of the transforms come with each pose.
   params_staging_.assign(
       static_cast<size_t>(std::max(field_count_, 1)) * kParamStride * 4, 0.f);
-  for (int i = 0; i < field_count_; ++i) {
+  for (int f = 0; f < field_count_; ++f) {
+    const int i = f % std::max(grid_count_, 1);  // the grid it samples
     const FieldGrid& g = fields.grids[i];
-    float* p = &params_staging_[static_cast<size_t>(i) * kParamStride * 4];
+    float* p = &params_staging_[static_cast<size_t>(f) * kParamStride * 4];
     const Eigen::Vector3f spacing = g.spacing();
     for (int a = 0; a < 3; ++a) {
       p[12 + a] = g.box_min[a];
       p[16 + a] = 1.f / spacing[a];
     }
+    p[15] = static_cast<float>(i);  // exact: at most 2^24 grids
     p[19] = static_cast<float>(resolution_ - 1);
     const int tile[3] = {i % tiles_[0], (i / tiles_[0]) % tiles_[1],
                          i / (tiles_[0] * tiles_[1])};
@@ -284,7 +315,7 @@ void ClFieldEvaluation::chooseStorage(FieldStorage requested,
       // fewest tiles: the filter's texel coordinates stay small (a float
       // coordinate of 2048 keeps only 1/4096 of a texel) and every axis
       // stays far from its limit.
-      const size_t count = static_cast<size_t>(std::max(field_count_, 1));
+      const size_t count = static_cast<size_t>(std::max(grid_count_, 1));
       size_t tx = 0, ty = 0, tz = 0;
       size_t best_side = 0, best_tiles = 0;
       for (size_t z = 1; z <= std::min(count, max_tiles[2]); ++z) {
@@ -344,7 +375,7 @@ void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
   // Unused tiles stay 0: a tile's last node reads its neighbour with a zero
   // weight, which must not be a NaN.
   std::vector<float> atlas(4 * width * height * depth, 0.f);
-  for (int i = 0; i < field_count_; ++i) {
+  for (int i = 0; i < grid_count_; ++i) {
     const size_t ox = (i % tiles_[0]) * n;
     const size_t oy = ((i / tiles_[0]) % tiles_[1]) * n;
     const size_t oz = (i / (tiles_[0] * tiles_[1])) * n;
@@ -375,12 +406,12 @@ void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
 void ClFieldEvaluation::uploadBuffer(const FieldGridSet& fields) {
   const size_t per_field =
       4 * static_cast<size_t>(resolution_) * resolution_ * resolution_;
-  std::vector<float> nodes(per_field * std::max(field_count_, 1), 0.f);
-  for (int i = 0; i < field_count_; ++i)
+  std::vector<float> nodes(per_field * std::max(grid_count_, 1), 0.f);
+  for (int i = 0; i < grid_count_; ++i)
     std::copy(fields.grids[i].nodes.begin(), fields.grids[i].nodes.end(),
               nodes.begin() + per_field * i);
   const std::string what = "ClFieldEvaluation: grids of " +
-                           std::to_string(field_count_) + " fields at " +
+                           std::to_string(grid_count_) + " fields at " +
                            std::to_string(resolution_) + "^3";
   if (half_) {  // the values are halves already: exact
     std::vector<uint16_t> halves = toHalves(nodes);
@@ -411,7 +442,8 @@ void ClFieldEvaluation::uploadComposition(const Composition* composition) {
                 composition->controllers[c].theta.end(),
                 controllers.begin() + c * kControllerSamples);
     for (int k = 0; k < pair_count_; ++k) {
-      const FieldPair& p = composition->pairs[composition->blended_pairs[k]];
+      const FieldPair& p =
+          composition_layout_.pairs[composition_layout_.blended_pairs[k]];
       pairs[4 * k + 0] = p.field_a;
       pairs[4 * k + 1] = p.field_b;
       pairs[4 * k + 2] = p.table;
@@ -424,10 +456,6 @@ void ClFieldEvaluation::uploadComposition(const Composition* composition) {
   pair_angles_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                             pair_angles_staging_.size() * sizeof(float),
                             pair_angles_staging_.data());
-  if (composition) {
-    composition_layout_.pairs = composition->pairs;
-    composition_layout_.blended_pairs = composition->blended_pairs;
-  }
   controllers_ =
       cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                  controllers.size() * sizeof(float), controllers.data());

@@ -80,10 +80,19 @@ class ClFieldEvaluation {
   // buildComposition; nullptr: the union of all fields) and uploads them;
   // isk::Error kInvalidArgument names the bad field or pair, kOpenCl the
   // failing call.
+  //
+  // `instances` > 1 (isk::ImplicitCrowd): the fields of that many instances
+  // of one character. `fields` and `composition` are one instance's; field
+  // k * #fields + i is field i of instance k, posed by joint k *
+  // joint_count + its joint, and the pose has joint_count * instances
+  // transforms (jointCount()). The grids and the occupied cells are stored
+  // once and shared by the instances; fieldCount(), pairCount() and
+  // layout() count every instance's.
   ClFieldEvaluation(std::shared_ptr<ClContext> context,
                     const FieldGridSet& fields, int joint_count,
                     FieldStorage storage = FieldStorage::kAuto,
-                    const Composition* composition = nullptr);
+                    const Composition* composition = nullptr,
+                    int instances = 1);
 
   // Host path: evaluates at `points` (#P by 3, model space, posed) for the
   // pose `skinning` (#joints skinning transforms). out_composed: #P by 4
@@ -141,6 +150,8 @@ class ClFieldEvaluation {
     return posed_to_bone_;
   }
   int fieldCount() const { return field_count_; }
+  // Grids stored on the device (fieldCount() / instances).
+  int gridCount() const { return grid_count_; }
   // Blend and bulge pairs evaluated per point, operator tables uploaded.
   int pairCount() const { return pair_count_; }
   int tableCount() const { return table_count_; }
@@ -174,6 +185,7 @@ class ClFieldEvaluation {
   std::shared_ptr<ClContext> context_;
   FieldGridSet layout_;  // the grids without their nodes (joints, frames)
   int field_count_ = 0;
+  int grid_count_ = 0;  // stored grids: one instance's fields
   int resolution_ = 0;
   int joint_count_ = 0;
   FieldStorage storage_ = FieldStorage::kBuffer;
