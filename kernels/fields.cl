@@ -22,9 +22,11 @@
 //      and interpolated in float as the reference does.
 // A node's float4 is (value, gradient x y z), gradient in the bone frame.
 // Field i samples grid i, except in a crowd (below, param [3].w).
-// field_cells: per grid ceil((N-1)^3 / 32) uint words, one bit per grid
-// cell (isk::occupiedCells): clear when the cell's 8 nodes are all zero, so
-// that a sample there is zero without loading them.
+// field_cells: per grid (N-1)^3 bytes, one per grid cell, cell (i, j, k)
+// at i + (N - 1) * (j + (N - 1) * k) (isk::cellValueBounds): 0 when the
+// cell's 8 nodes are all zero, so that a sample there is zero without
+// loading them; else b, every value interpolated in the cell below b / 255
+// (255: no bound), which lets the tracking skip fields that cannot matter.
 //
 // Field parameters: ISK_FIELD_PARAM_STRIDE float4 per field,
 //   [0..2] rows of the model -> bone 3x4 matrix (per pose);
@@ -135,7 +137,7 @@ ISK_INLINE float4 trilinear_texels(read_only image3d_t image, const int4 origin,
 #define ISK_FIELD_PARAMS                                            \
   ISK_FIELD_DATA_T field_data, __global const float4 *field_params, \
       const uint field_count, const int resolution,                 \
-      __global const uint *field_cells
+      __global const uchar *field_cells
 #define ISK_FIELD_ARGS \
   field_data, field_params, field_count, resolution, field_cells
 #define ISK_COMPOSITION_PARAMS                                              \
@@ -194,24 +196,22 @@ ISK_INLINE bool inside_nodes(const float3 u, const int resolution) {
          u.y <= last && u.z <= last;
 }
 
-// Value and bone-frame gradient of field `field` at node coordinates u
-// (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
-ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
-                                     __global const float4* params,
-                                     __global const uint* field_cells,
-                                     const uint field, const int resolution,
-                                     const float3 u) {
-  if (!inside_nodes(u, resolution)) return (float4)(0.0f);
-  // A cell whose 8 nodes are all zero interpolates to zero: its grid
-  // loads are skipped (most of a support box lies outside the field's
-  // support).
-  const uint grid = (uint)params[ISK_FIELD_PARAM_STRIDE * field + 3].w;
+// Index in field_cells of the cell holding node coordinates u (inside the
+// grid) of grid `grid`.
+ISK_INLINE uint cell_index(const uint grid, const int resolution,
+                           const float3 u) {
   const uint cells = (uint)(resolution - 1);
   const int3 c = min(convert_int3_rtz(u), (int3)(resolution - 2));
-  const uint cell = (uint)c.x + cells * ((uint)c.y + cells * (uint)c.z);
-  const uint words = (cells * cells * cells + 31u) / 32u;
-  if (!((field_cells[grid * words + (cell >> 5)] >> (cell & 31u)) & 1u))
-    return (float4)(0.0f);
+  return grid * cells * cells * cells + (uint)c.x +
+         cells * ((uint)c.y + cells * (uint)c.z);
+}
+
+// The trilinear sample of grid `grid` (field `field`'s) at node coordinates
+// u inside it, loads and all.
+ISK_INLINE float4 sample_grid_nodes(ISK_FIELD_DATA_T field_data,
+                                    __global const float4* params,
+                                    const uint field, const uint grid,
+                                    const int resolution, const float3 u) {
 #if ISK_FIELDS_IMAGE
   const float3 origin = params[ISK_FIELD_PARAM_STRIDE * field + 5].xyz;
   return trilinear_texels(field_data, (int4)(convert_int3_rtz(origin), 0),
@@ -227,6 +227,23 @@ ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
 #endif
 #endif
 }
+
+// Value and bone-frame gradient of field `field` at node coordinates u
+// (bone-frame point minus box_min, over the spacing). 0 outside [0, N-1].
+ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
+                                     __global const float4* params,
+                                     __global const uchar* field_cells,
+                                     const uint field, const int resolution,
+                                     const float3 u) {
+  if (!inside_nodes(u, resolution)) return (float4)(0.0f);
+  // A cell whose 8 nodes are all zero interpolates to zero: its grid
+  // loads are skipped (most of a support box lies outside the field's
+  // support).
+  const uint grid = (uint)params[ISK_FIELD_PARAM_STRIDE * field + 3].w;
+  if (field_cells[cell_index(grid, resolution, u)] == 0) return (float4)(0.0f);
+  return sample_grid_nodes(field_data, params, field, grid, resolution, u);
+}
+
 
 // Node coordinates of model-space point x (posed) in field `field`'s grid:
 // x is taken to the bone frame by the field's 3x4 rows.
@@ -247,7 +264,7 @@ ISK_INLINE float3 field_node_coords(__global const float4* field_params,
 // the gradient comes back by the transpose of the rows' linear part.
 ISK_INLINE float4 sample_field_at(ISK_FIELD_DATA_T field_data,
                                   __global const float4* field_params,
-                                  __global const uint* field_cells,
+                                  __global const uchar* field_cells,
                                   const uint field, const int resolution,
                                   const float3 u) {
   __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * field;
@@ -261,7 +278,7 @@ ISK_INLINE float4 sample_field_at(ISK_FIELD_DATA_T field_data,
 // (posed).
 ISK_INLINE float4 sample_field(ISK_FIELD_DATA_T field_data,
                                __global const float4* field_params,
-                               __global const uint* field_cells,
+                               __global const uchar* field_cells,
                                const uint field, const int resolution,
                                const float3 x) {
   return sample_field_at(field_data, field_params, field_cells, field,
@@ -279,7 +296,7 @@ ISK_INLINE bool inside_sphere(__global const float4* field_params, const uint fi
 
 ISK_INLINE float4 sample_field_culled(ISK_FIELD_DATA_T field_data,
                                       __global const float4* field_params,
-                                      __global const uint* field_cells,
+                                      __global const uchar* field_cells,
                                       const uint field, const int resolution,
                                       const float3 x) {
   if (!inside_sphere(field_params, field, x)) return (float4)(0.0f);

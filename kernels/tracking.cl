@@ -42,7 +42,8 @@
 // on h and its partners; in neighbour_pairs[...pair_offsets[h]...] the pairs
 // both of whose fields are listed); contact_params: x 1 when the contact by
 // home field is on (0: the paper's march only), y its gap in field units,
-// z 1 when the neighbourhoods are used (0: every field is sampled).
+// z 1 when the neighbourhoods are used (0: every field is sampled), w 1
+// when the projection skips fields by their value bounds (sample_tracking).
 #define ISK_TRACKING_PARAMS                                              \
   __global const int *home_fields, __global const float *home_margins,  \
       __global const int *partners, __global const int *neighbour_offsets, \
@@ -61,9 +62,21 @@
 // field (-1: none): while x lies in its support box only the fields of its
 // neighbourhood (boxes that meet it) can be non-zero, so only they are
 // sampled (same result, same order, as sampling every field).
+//
+// With `bounded` (the value bounds of field_cells, isk::cellValueBounds),
+// a listed field whose cell bound lies below the larger of the home value
+// and the best value so far cannot be the max (it loses to a field already
+// met or to the home field, wherever that comes in the list), and if it is
+// another part's field and its bound is at most home + other_slack (the
+// vertex's margin plus the tolerance), it cannot make the other parts'
+// field exceed home by more than the tolerance either, the only test that
+// value takes part in outside the march to a contact (where the caller
+// passes bounded = false): such a field is not sampled. The result is the
+// same as sampling it.
 ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                                   ISK_TRACKING_PARAMS, const float3 x,
-                                  const int home, float4* home_out,
+                                  const int home, const bool bounded,
+                                  const float other_slack, float4* home_out,
                                   float4* other_out) {
   float4 best = (float4)(0.0f);
   float4 h = (float4)(0.0f);
@@ -75,17 +88,38 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     listed = inside_nodes(home_u, resolution);
   }
   if (listed) {
+    // The home field first (its node coordinates are known): its value
+    // bounds the fields that can matter. It joins the unions at its place
+    // in the list.
+    const float4 home_sample =
+        inside_sphere(field_params, (uint)home, x)
+            ? sample_field_at(field_data, field_params, field_cells,
+                              (uint)home, resolution, home_u)
+            : (float4)(0.0f);
+    const float other_limit = home_sample.x + other_slack;
     const int end = neighbour_offsets[home + 1];
     for (int n = neighbour_offsets[home]; n < end; ++n) {
       const int entry = neighbour_entries[n];
       const uint i = (uint)(entry & NEIGHBOUR_FIELD);
       if (!inside_sphere(field_params, i, x)) continue;
-      const float4 s =
-          (int)i == home  // its node coordinates are known
-              ? sample_field_at(field_data, field_params, field_cells, i,
-                                resolution, home_u)
-              : sample_field(field_data, field_params, field_cells, i,
-                             resolution, x);
+      float4 s = home_sample;
+      if ((int)i != home) {
+        const float3 u = field_node_coords(field_params, i, x);
+        if (!inside_nodes(u, resolution)) continue;
+        __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * i;
+        const uint grid = (uint)p[3].w;
+        const uint b = field_cells[cell_index(grid, resolution, u)];
+        if (b == 0u) continue;  // zero at all 8 nodes
+        if (bounded && b < 255u) {
+          const float bound = (float)b * (1.0f / 255.0f);
+          if (bound < fmax(best.x, home_sample.x) &&
+              ((entry & NEIGHBOUR_PARTNER) || bound <= other_limit))
+            continue;  // changes nothing (see above)
+        }
+        const float4 g = sample_grid_nodes(field_data, field_params, i, grid,
+                                           resolution, u);
+        s = (float4)(g.x, g.y * p[0].xyz + g.z * p[1].xyz + g.w * p[2].xyz);
+      }
       // A zero value changes none of the unions, and the home sample is
       // only used where its value is above 0: skip the bookkeeping (a chain
       // of selects per listed field).
@@ -175,11 +209,14 @@ __kernel void track_project(const uint march_count, __global float* positions,
   const int home_field = home_fields[v];
   const int home = contact_params.x > 0.0f ? home_field : -1;
   const float margin = home >= 0 ? home_margins[v] : 0.0f;
+  // Without the contact by home field the other parts' value is not used.
+  const float other_slack = home >= 0 ? margin + step_params.z : INFINITY;
   for (int s = 0; s < steps; ++s) {
     float4 h, other;
-    const float4 sample =
-        sample_tracking(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, ISK_TRACKING_ARGS,
-                        x, home_field, &h, &other);
+    // Marching to a contact needs the other parts' exact value.
+    const float4 sample = sample_tracking(
+        ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, ISK_TRACKING_ARGS, x, home_field,
+        contact_params.w > 0.0f && prev.w != 2.0f, other_slack, &h, &other);
     const float3 g = sample.yzw;
     const float g_len = sqrt(g.x * g.x + g.y * g.y + g.z * g.z);
     if (!(sample.x > 0.0f) || !(g_len > min_gradient)) {

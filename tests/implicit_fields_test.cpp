@@ -315,6 +315,62 @@ TEST(ImplicitFields, OccupiedCellsOnAssets) {
   FOR_ASSETS(checkOccupiedCells, "the occupied cell checks on assets");
 }
 
+// cellValueBounds: 0 exactly where occupiedCells is clear; elsewhere every
+// sample in the cell (random points and the 8 corners) lies below the
+// bound by the promised 1 / 255, and the bound is no looser than 3 / 255
+// above the largest node value. Some occupied cells have a bound below 1
+// (there is something to skip); the first wrong cell is named.
+void checkCellValueBounds(const std::string& name) {
+  const ImplicitFields& fields = implicitFieldsOf(name);
+  std::mt19937 random(12);
+  std::uniform_real_distribution<float> unit(0, 1);
+  size_t bounded = 0;
+  for (const FieldGrid& grid : fields.grids.grids) {
+    SCOPED_TRACE("field of joint " + std::to_string(grid.joint));
+    const int n = grid.resolution, cells = n - 1;
+    const std::vector<uint32_t> bits = occupiedCells(grid);
+    const std::vector<uint8_t> bounds = cellValueBounds(grid);
+    ASSERT_EQ(bounds.size(), static_cast<size_t>(cells) * cells * cells);
+    for (int k = 0; k < cells; ++k)
+      for (int j = 0; j < cells; ++j)
+        for (int i = 0; i < cells; ++i) {
+          const size_t cell = i + cells * (j + static_cast<size_t>(cells) * k);
+          const bool set = bits[cell / 32] >> (cell % 32) & 1u;
+          const int b = bounds[cell];
+          ASSERT_EQ(b != 0, set)
+              << "cell (" << i << ", " << j << ", " << k << ")";
+          if (!set || b == 255) continue;
+          ++bounded;
+          float largest = 0;
+          for (int c = 0; c < 8; ++c)
+            largest = std::max(
+                largest,
+                grid.nodes[4 * ((i + (c & 1)) + n * ((j + (c >> 1 & 1)) +
+                                                     n * (k + (c >> 2))))]);
+          ASSERT_LE(b / 255.0, largest + 3 / 255.0)
+              << "cell (" << i << ", " << j << ", " << k << ")";
+          for (int t = 0; t < 12; ++t) {
+            const Eigen::Vector3f u =
+                t < 8 ? Eigen::Vector3f(i + (t & 1), j + (t >> 1 & 1),
+                                        k + (t >> 2))
+                      : Eigen::Vector3f(i + unit(random), j + unit(random),
+                                        k + unit(random));
+            const Eigen::Vector3f local =
+                grid.box_min + u.cwiseProduct(grid.spacing());
+            ASSERT_LT(grid.sampleLocal(local)[0] + 1 / 255.0 - 1e-6, b / 255.0)
+                << "in cell (" << i << ", " << j << ", " << k << ")";
+          }
+        }
+  }
+  EXPECT_GT(bounded, 0u);
+}
+TEST(ImplicitFields, CellValueBoundsOnProceduralRigs) {
+  FOR_PROCEDURAL_RIGS(checkCellValueBounds);
+}
+TEST(ImplicitFields, CellValueBoundsOnAssets) {
+  FOR_ASSETS(checkCellValueBounds, "the cell value bound checks on assets");
+}
+
 // --- the 0.5 iso against the mesh part ---------------------------------------
 
 // Distance from x to the first crossing of f's 0.5 iso along the ray from x in

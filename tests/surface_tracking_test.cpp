@@ -985,19 +985,21 @@ TEST(ImplicitSkinner, CharactersShareOneContext) {
             1e-5f * finger.boundingBoxDiagonal());
 }
 
-// The speed switches (neighbourhoods, march order, occupied cells) change no
-// result: the same frame with each off, on the CPU reference and on OpenCL.
+// The speed switches (neighbourhoods, march order, occupied cells, value
+// bounds) change no result: the same frame with each off, on the CPU
+// reference and on OpenCL.
 void checkSpeedSwitches(const Rig& rig,
                         std::shared_ptr<const ImplicitFields> fields,
                         const TransformList& pose) {
   struct Switches {
-    bool neighbourhoods = true, march_order = true, cells = true;
+    bool neighbourhoods = true, march_order = true, cells = true, bounds = true;
   };
   auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
     options.tracking.field_neighbourhoods = on.neighbourhoods;
     options.tracking.march_order = on.march_order;
     options.tracking.occupied_cells = on.cells;
+    options.tracking.value_bounds = on.bounds;
     CpuImplicitSkinner cpu(rig, fields, options);
     cpu.run(pose);
     ImplicitSkinner device(test::sharedContext(), rig, fields, options);
@@ -1008,12 +1010,14 @@ void checkSpeedSwitches(const Rig& rig,
   };
   const auto all = frames({});
   for (const Switches& on :
-       {Switches{false, true, true}, Switches{true, false, true},
-        Switches{true, true, false}, Switches{false, false, false}}) {
+       {Switches{false, true, true, true}, Switches{true, false, true, true},
+        Switches{true, true, false, true}, Switches{true, true, true, false},
+        Switches{false, false, false, false}}) {
     SCOPED_TRACE(std::string("neighbourhoods ") +
                  (on.neighbourhoods ? "on" : "off") + ", march order " +
                  (on.march_order ? "on" : "off") + ", occupied cells " +
-                 (on.cells ? "on" : "off"));
+                 (on.cells ? "on" : "off") + ", value bounds " +
+                 (on.bounds ? "on" : "off"));
     const auto other = frames(on);
     const test::RowMismatch cpu =
         test::largestRowDistance(other.first, all.first);
@@ -1029,6 +1033,18 @@ TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnProceduralRigs) {
   checkSpeedSwitches(c.rig, c.fields, bendAt(c.rig, c.joint, 135));
   const Rig& arm = test::rigNamed("arm");
   checkSpeedSwitches(arm, sharedFields("arm"), clipPoses(arm, 4).back());
+  // Blend and bulge pairs: partner fields (value bounds skip them on the
+  // composed value alone) and pairs composed on top.
+  for (const CompositionOperator op :
+       {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
+    SCOPED_TRACE(op == CompositionOperator::kBlend ? "blend" : "bulge");
+    ImplicitFieldsOptions options;
+    options.composition.default_operator = op;
+    const auto fields = std::make_shared<const ImplicitFields>(
+        buildImplicitFields(arm, options));
+    for (const TransformList& pose : clipPoses(arm, 4))
+      checkSpeedSwitches(arm, fields, pose);
+  }
 }
 
 TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnAssets) {

@@ -46,6 +46,30 @@ std::vector<uint32_t> occupiedCells(const FieldGrid& grid) {
   return bits;
 }
 
+std::vector<uint8_t> cellValueBounds(const FieldGrid& grid) {
+  const size_t n = static_cast<size_t>(std::max(grid.resolution, 2));
+  const size_t cells = n - 1;
+  std::vector<uint8_t> bounds(cells * cells * cells, 0);
+  if (grid.nodes.size() < 4 * n * n * n) return bounds;
+  const std::vector<uint32_t> occupied = occupiedCells(grid);
+  for (size_t k = 0; k < cells; ++k)
+    for (size_t j = 0; j < cells; ++j)
+      for (size_t i = 0; i < cells; ++i) {
+        const size_t cell = i + cells * (j + cells * k);
+        if (!((occupied[cell / 32] >> (cell % 32)) & 1u)) continue;
+        float largest = 0.f;
+        for (size_t c = 0; c < 8; ++c)
+          largest = std::max(
+              largest,
+              grid.nodes[4 * ((i + (c & 1)) + n * ((j + ((c >> 1) & 1)) +
+                                                   n * (k + (c >> 2))))]);
+        // Not a number, or past the byte: no bound.
+        const double b = std::floor(255.0 * largest) + 2.0;
+        bounds[cell] = b >= 2.0 && b < 255.0 ? static_cast<uint8_t>(b) : 255;
+      }
+  return bounds;
+}
+
 FieldGrid bakeField(const BoneField& field, int resolution) {
   if (resolution < 2)
     throw Error(ErrorCode::kInvalidArgument,

@@ -55,6 +55,16 @@ FieldGrid bakeField(const BoneField& field, int resolution = 32);
 // outside the field's compact support).
 std::vector<uint32_t> occupiedCells(const FieldGrid& grid);
 
+// An upper bound of `grid`'s value in each cell, one byte per cell in
+// occupiedCells' order ((resolution - 1)^3 bytes): 0 when the cell's bit in
+// occupiedCells is clear (the samples there are zero), else b with every
+// value interpolated in the cell (a convex combination of its 8 nodes'
+// values) below b / 255, with at least 1 / 255 to spare (b = floor(255 m)
+// + 2 for the largest node value m, at most 255; 255: no bound). The
+// tracking kernel skips the loads of a field whose bound shows it can
+// change nothing at a point (SurfaceTrackingOptions::value_bounds).
+std::vector<uint8_t> cellValueBounds(const FieldGrid& grid);
+
 // Precision of the grid nodes (FieldGridSet::precision).
 enum class GridPrecision {
   kFloat,  // 32-bit floats, as baked

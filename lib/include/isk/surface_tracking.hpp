@@ -114,11 +114,14 @@ struct SurfaceTrackingOptions {
   // measure them): sample a vertex's home field neighbourhood instead of
   // every field while it is in its home field's box (FieldNeighbourhoods),
   // march the vertices in TrackingMesh::march_order rather than by index
-  // (OpenCL), and skip the grid loads of cells that are zero at all 8
-  // nodes (occupiedCells; OpenCL).
+  // (OpenCL), skip the grid loads of cells that are zero at all 8 nodes
+  // (occupiedCells; OpenCL), and skip the fields whose value bound in the
+  // cell shows they can change nothing at the point (cellValueBounds: below
+  // the home field's value and the best so far; OpenCL, projection).
   bool field_neighbourhoods = true;
   bool march_order = true;
   bool occupied_cells = true;
+  bool value_bounds = true;
 
   // Names the first bad parameter and its valid range.
   Validation validate() const;

@@ -234,16 +234,16 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
     else
       uploadBuffer(fields);
     uploadComposition(composition);
-    // Every field's occupiedCells, one after the other.
-    std::vector<uint32_t> cells;
+    // Every grid's cellValueBounds, one after the other.
+    std::vector<uint8_t> cells;
     for (const FieldGrid& g : fields.grids) {
-      const std::vector<uint32_t> bits = occupiedCells(g);
-      cells.insert(cells.end(), bits.begin(), bits.end());
+      const std::vector<uint8_t> bounds = cellValueBounds(g);
+      cells.insert(cells.end(), bounds.begin(), bounds.end());
     }
-    if (cells.empty()) cells.push_back(0u);  // a valid buffer
+    if (cells.empty()) cells.push_back(0);  // a valid buffer
     cells_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                        cells.size() * sizeof(uint32_t),
-                        const_cast<uint32_t*>(cells.data()));
+                        cells.size(), cells.data());
+    cell_bytes_ = cells.size();
     params_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
                          params_staging_.size() * sizeof(float),
                          params_staging_.data());
@@ -533,7 +533,7 @@ void ClFieldEvaluation::setFieldArgs(cl::Kernel& kernel,
 }
 
 size_t ClFieldEvaluation::bytes() const {
-  return field_bytes_ + operator_bytes_ + composition_bytes_ +
+  return field_bytes_ + cell_bytes_ + operator_bytes_ + composition_bytes_ +
          params_staging_.size() * sizeof(float) + points_bytes_ +
          composed_bytes_ + per_field_bytes_ + kFloat4;
 }

@@ -117,12 +117,12 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_entries_ = int_buffer(fields * fields);
     neighbour_pair_offsets_ = int_buffer(fields + 1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
-    if (!options.occupied_cells) {  // every cell marked: nothing skipped
+    if (!options.occupied_cells) {  // no cell clear, no bound: no skipping
       const size_t cells =
           static_cast<size_t>(fields_->layout().resolution) - 1;
-      const std::vector<uint32_t> every(
-          std::max<size_t>(fields, 1) * ((cells * cells * cells + 31) / 32),
-          ~0u);
+      const std::vector<uint8_t> every(
+          std::max<size_t>(fields_->gridCount(), 1) * cells * cells * cells,
+          255);
       every_cell_ = uploadReadOnly(*context_, every, &bytes_);
     }
     {  // the one-rings in device order, neighbours as device indices
@@ -229,7 +229,8 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
   kernel.setArg(
       first_index + 7,
       cl_float4{{options_.home_contact ? 1.f : 0.f, options_.contact_gap,
-                 options_.field_neighbourhoods ? 1.f : 0.f, 0.f}});
+                 options_.field_neighbourhoods ? 1.f : 0.f,
+                 options_.value_bounds ? 1.f : 0.f}});
 }
 
 void ClSurfaceTracking::begin(const TransformList& skinning,

@@ -122,7 +122,7 @@ class ClFieldEvaluation {
   void setPose(const TransformList& skinning);
 
   // Binds field data, field params, field count, resolution and the
-  // occupied cells (isk::occupiedCells) to arguments first_index ..
+  // cells' value bounds (isk::cellValueBounds) to arguments first_index ..
   // first_index + 4 of `kernel` (a kernel of a
   // program built with buildOptions()).
   void setFieldArgs(cl::Kernel& kernel, cl_uint first_index) const;
@@ -197,7 +197,8 @@ class ClFieldEvaluation {
   cl::Buffer params_;
   bool half_ = false;        // buffer of halves (ISK_FIELDS_HALF)
   bool image_half_ = false;  // atlas in CL_HALF_FLOAT
-  cl::Buffer cells_;         // occupiedCells of the grids
+  cl::Buffer cells_;         // cellValueBounds of the grids
+  size_t cell_bytes_ = 0;
   cl::Image3D operator_image_;
   cl::Buffer operator_nodes_, pairs_, pair_angles_, controllers_;
   Composition composition_layout_;  // the composition without its tables
