@@ -226,6 +226,7 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
     options.tracking.field_neighbourhoods = false;
   if (lever == "no-march-order") options.tracking.march_order = false;
   if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
+  if (lever == "no-value-bounds") options.tracking.value_bounds = false;
   if (lever.rfind("sigma-", 0) == 0)
     options.tracking.sigma = std::stof(lever.substr(6));
   const Rig& rig = c.rig();
@@ -498,7 +499,8 @@ void registerImplicitBenchmarks() {
     for (const ClDeviceInfo& device : devices())
       for (const char* lever :
            {"all", "no-neighbourhoods", "no-march-order", "no-occupied-cells",
-            "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1"})
+            "no-value-bounds", "half-grids", "sigma-0.5", "sigma-0.7",
+            "sigma-1"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

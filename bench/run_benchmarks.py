@@ -166,7 +166,7 @@ class Results:
                 m = re.fullmatch(r"(opencl|opencl-buffer|opencl-image|dqs|paired|"
                                  r"implicit|cold|warm|in-process|all|"
                                  r"no-neighbourhoods|no-march-order|"
-                                 r"no-occupied-cells|x\d+):(\d+)",
+                                 r"no-occupied-cells|no-value-bounds|x\d+):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
                     self.devices[int(m.group(2))] = {
@@ -592,7 +592,7 @@ def implicit_section(results):
 
 
 LEVERS = ("all", "no-neighbourhoods", "no-march-order", "no-occupied-cells",
-          "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
+          "no-value-bounds", "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
 
 
 def moved(run):
@@ -619,8 +619,13 @@ def levers_section(results):
               "projection marches the vertices by home field and along a "
               "Morton curve of their rest positions, instead of by index) "
               "and `occupied_cells` (a field sample in a grid cell whose 8 "
-              "nodes are all zero skips the cell's loads, one bit per cell "
-              "telling which; `isk::occupiedCells`). "
+              "nodes are all zero skips the cell's loads; "
+              "`isk::occupiedCells`, held on the device as the zero bytes "
+              "of the value bounds below, so that switching it off also "
+              "switches those off) and `value_bounds` (the projection skips "
+              "a field whose value bound in the cell, one byte per cell, "
+              "`isk::cellValueBounds`, shows it can change nothing: below "
+              "the home field's value and the best so far). "
               "None changes the result (tests compare the frames bit for "
               "bit); 'all' has every switch on. 'half-grids' is the other "
               "way round: every switch on, and the grids rounded to half "
