@@ -16,6 +16,7 @@
 #include "isk/cl/skinning.hpp"
 #include "isk/cpu_skinning.hpp"
 #include "isk/error.hpp"
+#include "isk/implicit_crowd.hpp"
 #include "isk/implicit_fields.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/pose.hpp"
@@ -384,6 +385,7 @@ TEST(ApiMisuse, DegeneratePosesGiveFiniteOutputOrNameTheJoint) {
   ClSkinning cl(test::sharedContext(), rig.mesh, rig.weights, joints);
   CpuImplicitSkinner cpu_implicit(rig, s.fields, s.options);
   ImplicitSkinner cl_implicit(test::sharedContext(), rig, s.fields, s.options);
+  ImplicitCrowd crowd(test::sharedContext(), rig, s.fields, 2, s.options);
   const TransformList bend = test::bendAt(rig, 1, 60.0);
   const std::vector<std::pair<std::string, Eigen::Affine3f>> spoilers = {
       {"scale 0", Eigen::Affine3f(Eigen::Scaling(0.f))},
@@ -443,6 +445,24 @@ TEST(ApiMisuse, DegeneratePosesGiveFiniteOutputOrNameTheJoint) {
         [&] {
           cl_implicit.readPositions(positions);
           cl_implicit.readNormals(normals);
+        });
+    // A crowd whose second instance has the pose: the same, for both
+    // instances' rows (the crowd's broad phase sorts boxes by their bounds).
+    check(
+        "ImplicitCrowd",
+        [&] {
+          crowd.run({bend, pose});
+        },
+        [&] {
+          Matrix3Xf all_positions, all_normals;
+          crowd.readPositions(all_positions);
+          crowd.readNormals(all_normals);
+          ASSERT_EQ(all_positions.rows(), 2 * n);
+          ASSERT_TRUE(all_positions.topRows(n).allFinite() &&
+                      all_normals.topRows(n).allFinite())
+              << what << ": the first instance";
+          positions = all_positions.bottomRows(n);
+          normals = all_normals.bottomRows(n);
         });
   }
 }

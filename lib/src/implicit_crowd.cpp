@@ -1,5 +1,6 @@
 #include "isk/implicit_crowd.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -225,6 +226,9 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
   s.joints = rig.skeleton.jointCount();
   scaled(s.vertices, instances, "vertices");
   scaled(s.joints, instances, "joints");
+  scaled(static_cast<int>(std::min<size_t>(rig.weights.joints.size(),
+                                           std::numeric_limits<int>::max())),
+         instances, "skin influences");
   for (const Joint& j : rig.skeleton.joints) s.joint_names.push_back(j.name);
   const TrackingMesh one = TrackingMesh::build(rig.mesh, *s.fields);
   s.tracking_mesh = std::make_unique<const TrackingMesh>(
