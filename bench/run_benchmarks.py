@@ -606,6 +606,18 @@ def moved(run):
             f"{100 * run['moved_beyond_1e-3']:.2f}%")
 
 
+def by_model_and_device(runs):
+    """Runs named <family>/<model>/<variant>:<d> as {model: {variant:d:
+    run}}, and the devices d they ran on, ascending."""
+    models = {}
+    for key, run in runs.items():
+        if len(key) == 3:
+            models.setdefault(key[1], {})[key[2]] = run
+    devices = sorted({split_device(b)[1] for m in models.values() for b in m
+                      if split_device(b)[1] is not None})
+    return models, devices
+
+
 def levers_section(results):
     runs = results.family("Levers")
     lines = ["## Speed switches (`Levers/`)", ""]
@@ -648,16 +660,10 @@ def levers_section(results):
               "of percent apart). ms/frame is the switched frame's wall "
               "time with its read-back, 'paired' the frames it was timed "
               "against.", ""]
-    models = {}
-    for key, run in runs.items():
-        if len(key) == 3:
-            models.setdefault(key[1], {})[key[2]] = run
-    order = model_order(results)
-    devices = sorted({split_device(b)[1] for m in models.values() for b in m
-                      if split_device(b)[1] is not None})
+    models, devices = by_model_and_device(runs)
     for d in devices:
         rows = []
-        for model in ordered(models, order):
+        for model in ordered(models, model_order(results)):
             base = models[model].get(f"all:{d}")
             for lever in LEVERS:
                 run = models[model].get(f"{lever}:{d}")
@@ -701,16 +707,10 @@ def crowd_section(results):
               "vertex (tests check it). ms/frame is the wall time of the "
               "whole crowd's frame with its read-backs; 'separate / crowd' "
               "above 1 means the crowd pays.", ""]
-    models = {}
-    for key, run in runs.items():
-        if len(key) == 3:
-            models.setdefault(key[1], {})[key[2]] = run
-    order = model_order(results)
-    devices = sorted({split_device(b)[1] for m in models.values() for b in m
-                      if split_device(b)[1] is not None})
+    models, devices = by_model_and_device(runs)
     for d in devices:
         rows = []
-        for model in ordered(models, order):
+        for model in ordered(models, model_order(results)):
             sizes = sorted(
                 (int(split_device(b)[0][1:]), run)
                 for b, run in models[model].items()

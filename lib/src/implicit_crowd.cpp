@@ -199,17 +199,8 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
   if (!fields) invalid("ImplicitCrowd: no fields");
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
   rig.validate().throwIfFailed(rig.source);
-  if (static_cast<int>(fields->iso_values.size()) != rig.mesh.vertexCount())
-    invalid("ImplicitCrowd: the fields hold " +
-            std::to_string(fields->iso_values.size()) + " iso values but " +
-            rig.source + " has " + std::to_string(rig.mesh.vertexCount()) +
-            " vertices (built for another rig?)");
-  for (const FieldGrid& g : fields->grids.grids)
-    if (g.joint < 0 || g.joint >= rig.skeleton.jointCount())
-      invalid("ImplicitCrowd: a field belongs to joint " +
-              std::to_string(g.joint) + " but " + rig.source + " has " +
-              std::to_string(rig.skeleton.jointCount()) +
-              " joints (built for another rig?)");
+  if (const Validation v = fieldsFitRig(*fields, rig); !v)
+    invalid("ImplicitCrowd: " + v.reason());
   // The neighbourhood lists tag a field index in 16 bits.
   constexpr int kMaxFields = FieldNeighbourhoods::kFieldMask;
   if (static_cast<long long>(fields->grids.fieldCount()) * instances >

@@ -283,4 +283,20 @@ void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig) {
   fields.outside_vertices = std::move(outside);
 }
 
+Validation fieldsFitRig(const ImplicitFields& fields, const Rig& rig) {
+  if (static_cast<int>(fields.iso_values.size()) != rig.mesh.vertexCount())
+    return Validation::fail("the fields hold " +
+                            std::to_string(fields.iso_values.size()) +
+                            " iso values but " + rig.source + " has " +
+                            std::to_string(rig.mesh.vertexCount()) +
+                            " vertices (built for another rig?)");
+  for (const FieldGrid& g : fields.grids.grids)
+    if (g.joint < 0 || g.joint >= rig.skeleton.jointCount())
+      return Validation::fail(
+          "a field belongs to joint " + std::to_string(g.joint) + " but " +
+          rig.source + " has " + std::to_string(rig.skeleton.jointCount()) +
+          " joints (built for another rig?)");
+  return Validation::ok();
+}
+
 }  // namespace isk

@@ -13,20 +13,8 @@ std::shared_ptr<const ImplicitFields> checkedFields(
     const Rig& rig, std::shared_ptr<const ImplicitFields> fields) {
   if (!fields)
     throw Error(ErrorCode::kInvalidArgument, "implicit skinner: no fields");
-  if (static_cast<int>(fields->iso_values.size()) != rig.mesh.vertexCount())
-    throw Error(ErrorCode::kInvalidArgument,
-                "implicit skinner: the fields hold " +
-                    std::to_string(fields->iso_values.size()) +
-                    " iso values but " + rig.source + " has " +
-                    std::to_string(rig.mesh.vertexCount()) +
-                    " vertices (built for another rig?)");
-  for (const FieldGrid& g : fields->grids.grids)
-    if (g.joint < 0 || g.joint >= rig.skeleton.jointCount())
-      throw Error(ErrorCode::kInvalidArgument,
-                  "implicit skinner: a field belongs to joint " +
-                      std::to_string(g.joint) + " but " + rig.source + " has " +
-                      std::to_string(rig.skeleton.jointCount()) +
-                      " joints (built for another rig?)");
+  if (const Validation v = fieldsFitRig(*fields, rig); !v)
+    throw Error(ErrorCode::kInvalidArgument, "implicit skinner: " + v.reason());
   return fields;
 }
 

@@ -105,6 +105,11 @@ struct ImplicitFields {
 ImplicitFields buildImplicitFields(const Rig& rig,
                                    const ImplicitFieldsOptions& options = {});
 
+// Whether `fields` can skin `rig`: one iso value per vertex and every
+// field's joint in its skeleton; the reason gives the counts ("built for
+// another rig?").
+Validation fieldsFitRig(const ImplicitFields& fields, const Rig& rig);
+
 // Turns `fields` (built for `rig`) into half-precision ones without fitting
 // again: rounds the grids (roundGridsToHalf: an OpenCL skinner then stores
 // 2 bytes per channel instead of 4) and takes the iso values and the
