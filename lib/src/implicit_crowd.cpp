@@ -7,6 +7,8 @@
 #include <string>
 
 #include "isk/error.hpp"
+#include "skinner_fields.hpp"
+#include "stopwatch.hpp"
 
 namespace isk {
 
@@ -168,23 +170,13 @@ struct ImplicitCrowd::State {
   bool has_run = false;
 };
 
-namespace {
-
-std::shared_ptr<const ImplicitFields> builtFields(
-    const Rig& rig, const ImplicitSkinnerOptions& options) {
-  options.validate().throwIfFailed("ImplicitSkinnerOptions");
-  return std::make_shared<const ImplicitFields>(
-      buildImplicitFields(rig, options.fields));
-}
-
-}  // namespace
-
 ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
                              int instances,
                              const ImplicitSkinnerOptions& options)
-    : ImplicitCrowd(std::move(context), rig,
-                    instances >= 1 ? builtFields(rig, options) : nullptr,
-                    instances, options) {}
+    : ImplicitCrowd(
+          std::move(context), rig,
+          instances >= 1 ? detail::buildSkinnerFields(rig, options) : nullptr,
+          instances, options) {}
 
 ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
                              std::shared_ptr<const ImplicitFields> fields,
@@ -291,18 +283,14 @@ void ImplicitCrowd::readPositions(Matrix3Xf& out) {
   State& s = state("readPositions", true);
   const auto start = std::chrono::steady_clock::now();
   s.tracking->readPositions(out);
-  s.times.readback_ms += std::chrono::duration<double, std::milli>(
-                             std::chrono::steady_clock::now() - start)
-                             .count();
+  s.times.readback_ms += detail::millisecondsSince(start);
 }
 
 void ImplicitCrowd::readNormals(Matrix3Xf& out) {
   State& s = state("readNormals", true);
   const auto start = std::chrono::steady_clock::now();
   s.tracking->readNormals(out);
-  s.times.readback_ms += std::chrono::duration<double, std::milli>(
-                             std::chrono::steady_clock::now() - start)
-                             .count();
+  s.times.readback_ms += detail::millisecondsSince(start);
 }
 
 const cl::Buffer& ImplicitCrowd::positionsBuffer() const {

@@ -4,6 +4,8 @@
 #include <string>
 
 #include "isk/error.hpp"
+#include "skinner_fields.hpp"
+#include "stopwatch.hpp"
 
 namespace isk {
 
@@ -18,13 +20,6 @@ std::shared_ptr<const ImplicitFields> checkedFields(
   return fields;
 }
 
-std::shared_ptr<const ImplicitFields> buildFields(
-    const Rig& rig, const ImplicitSkinnerOptions& options) {
-  options.validate().throwIfFailed("ImplicitSkinnerOptions");
-  return std::make_shared<const ImplicitFields>(
-      buildImplicitFields(rig, options.fields));
-}
-
 }  // namespace
 
 Validation ImplicitSkinnerOptions::validate() const {
@@ -36,8 +31,8 @@ Validation ImplicitSkinnerOptions::validate() const {
 ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
                                  const Rig& rig,
                                  const ImplicitSkinnerOptions& options)
-    : ImplicitSkinner(std::move(context), rig, buildFields(rig, options),
-                      options) {}
+    : ImplicitSkinner(std::move(context), rig,
+                      detail::buildSkinnerFields(rig, options), options) {}
 
 ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
                                  const Rig& rig,
@@ -92,18 +87,14 @@ void ImplicitSkinner::readPositions(Matrix3Xf& out) {
   checkUsable("readPositions", true);
   const auto start = std::chrono::steady_clock::now();
   tracking_->readPositions(out);
-  times_.readback_ms += std::chrono::duration<double, std::milli>(
-                            std::chrono::steady_clock::now() - start)
-                            .count();
+  times_.readback_ms += detail::millisecondsSince(start);
 }
 
 void ImplicitSkinner::readNormals(Matrix3Xf& out) {
   checkUsable("readNormals", true);
   const auto start = std::chrono::steady_clock::now();
   tracking_->readNormals(out);
-  times_.readback_ms += std::chrono::duration<double, std::milli>(
-                            std::chrono::steady_clock::now() - start)
-                            .count();
+  times_.readback_ms += detail::millisecondsSince(start);
 }
 
 const cl::Buffer& ImplicitSkinner::positionsBuffer() const {
@@ -121,7 +112,8 @@ int ImplicitSkinner::contactCount() {
 
 CpuImplicitSkinner::CpuImplicitSkinner(const Rig& rig,
                                        const ImplicitSkinnerOptions& options)
-    : CpuImplicitSkinner(rig, buildFields(rig, options), options) {}
+    : CpuImplicitSkinner(rig, detail::buildSkinnerFields(rig, options),
+                         options) {}
 
 CpuImplicitSkinner::CpuImplicitSkinner(
     const Rig& rig, std::shared_ptr<const ImplicitFields> fields,
