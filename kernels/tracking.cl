@@ -185,14 +185,16 @@ __kernel void track_begin(const uint vertex_count,
 }
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
-// cos(contact angle), tolerance (field units), largest move (model units);
-// min_gradient: smallest |grad f| (model units); then ISK_TRACKING_PARAMS.
+// cos(contact angle), tolerance (field units), unused; step_limits per
+// vertex (isk::trackingLengths): the largest move and the smallest
+// |grad f| (model units); then ISK_TRACKING_PARAMS.
 // prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
 __kernel void track_project(const uint march_count, __global float* positions,
                             __global const float* iso_values,
                             __global uchar* states,
                             __global float4* prev_gradients, const int steps,
-                            const float4 step_params, const float min_gradient,
+                            const float4 step_params,
+                            __global const float2* step_limits,
                             ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
                             ISK_COMPOSITION_PARAMS,
                             __global float4* relax_frames) {
@@ -211,6 +213,9 @@ __kernel void track_project(const uint march_count, __global float* positions,
   const float margin = home >= 0 ? home_margins[v] : 0.0f;
   // Without the contact by home field the other parts' value is not used.
   const float other_slack = home >= 0 ? margin + step_params.z : INFINITY;
+  const float2 limits = step_limits[v];
+  const float max_step = limits.x;
+  const float min_gradient = limits.y;
   for (int s = 0; s < steps; ++s) {
     float4 h, other;
     // Marching to a contact needs the other parts' exact value.
@@ -248,7 +253,7 @@ __kernel void track_project(const uint march_count, __global float* positions,
         prev.w = 2.0f;
         frame = (float4)(c, gc / gc_len);  // the contact surface c = 0
         const float length = clamp(-step_params.x * c / gc_len,
-                                   -step_params.w, step_params.w);
+                                   -max_step, max_step);
         x += length * (gc / gc_len);
         continue;
       }
@@ -268,7 +273,7 @@ __kernel void track_project(const uint march_count, __global float* positions,
     }
     frame = (float4)(sample.x - iso, unit);
     const float length =
-        clamp(step_params.x * d / g_len, -step_params.w, step_params.w);
+        clamp(step_params.x * d / g_len, -max_step, max_step);
     x += length * unit;
   }
   vstore3(x, v, positions);
@@ -323,8 +328,9 @@ __kernel void track_beta_init(const uint vertex_count,
                      states[v] == TRACK_CREASE ? 1.0f : 0.0f);
 }
 
-// One diffusion of (beta, gamma) over the one-ring, beta_in -> beta_out, of
-// the channels whose `channels` entry is 1: sources stay at 1, the others
+// One diffusion of (beta, gamma) over the one-ring (the neighbours within
+// the vertex's smoothing radius, radii[v], rest distance), beta_in ->
+// beta_out, of the channels whose `channels` entry is 1: sources stay at 1, the others
 // take the mean of themselves and their neighbours (duplicates, with no
 // ring, keep theirs).
 __kernel void track_beta_diffuse(const uint vertex_count,
@@ -332,7 +338,7 @@ __kernel void track_beta_diffuse(const uint vertex_count,
                                  __global const uint* ring_offsets,
                                  __global const int* ring_neighbours,
                                  __global const float* ring_lengths,
-                                 const float radius,
+                                 __global const float* radii,
                                  __global const float2* beta_in,
                                  __global float2* beta_out,
                                  const float2 channels) {
@@ -340,6 +346,7 @@ __kernel void track_beta_diffuse(const uint vertex_count,
   if (v >= vertex_count) return;
   const uint begin = ring_offsets[v];
   const uint end = ring_offsets[v + 1];
+  const float radius = radii[v];
   const float2 b = beta_in[v];
   float2 sum = b;
   float count = 1.0f;
@@ -356,7 +363,7 @@ __kernel void track_beta_diffuse(const uint vertex_count,
   beta_out[v] = out;
 }
 
-// One Laplacian step over the neighbours within `radius` (rest distance),
+// One Laplacian step over the neighbours within radii[v] (rest distance),
 // positions_in -> positions_out: full, weighted by beta
 // (eq. 7), and tangential (normal to the ring) weighted by (1 - beta) gamma;
 // `weights` (0 or 1 each) switches the two off once their steps are done.
@@ -366,7 +373,7 @@ __kernel void track_smooth(const uint vertex_count,
                            __global const uint* ring_offsets,
                            __global const int* ring_neighbours,
                            __global const float* ring_lengths,
-                           const float radius,
+                           __global const float* radii,
                            __global const float2* beta,
                            __global const float* positions_in,
                            __global float* positions_out,
@@ -379,6 +386,7 @@ __kernel void track_smooth(const uint vertex_count,
   if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != RULE_FIXED) {
     const uint begin = ring_offsets[v];
     const uint end = ring_offsets[v + 1];
+    const float radius = radii[v];
     float3 centroid = (float3)(0.0f);
     int near = 0;
     for (uint i = begin; i < end; ++i) {

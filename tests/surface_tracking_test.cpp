@@ -645,14 +645,18 @@ TEST(SurfaceTracking, SweepIsCoherentInTime) {
 
 // Compares positions, states and previous gradients of the two backends
 // after each stage, both starting every stage from the reference's state.
+// vertex_diagonals, when given, replaces the tracking mesh's (the lengths
+// of a crowd of characters of different sizes).
 void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
                  const TransformList& pose,
                  FieldStorage storage = FieldStorage::kAuto,
-                 bool chained = false) {
+                 bool chained = false,
+                 const std::vector<float>* vertex_diagonals = nullptr) {
   const float diagonal = rig.boundingBoxDiagonal();
   const auto context = test::sharedContext();
   const float tolerance = stageTolerance(*context) * diagonal;
-  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
+  TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
+  if (vertex_diagonals) mesh.vertex_diagonals = *vertex_diagonals;
   CpuSkinning dqs(rig.mesh, rig.weights, rig.skeleton.jointCount());
   dqs.run(SkinningMethod::kDualQuaternion, pose, false);
   ClSkinning device_dqs(context, rig.mesh, rig.weights,
@@ -766,6 +770,50 @@ TEST(ClSurfaceTracking, StagesMatchTheReferenceOnProceduralRigs) {
   SCOPED_TRACE("10k cylinder at 135 degrees");
   const BentCylinder& c = bentCylinder();
   checkStages(c.rig, c.fields, bendAt(c.rig, c.joint, 135));
+}
+
+// Each vertex's own lengths (TrackingMesh::vertex_diagonals, as a crowd of
+// characters of different sizes has them: step limits and smoothing radius
+// per vertex) give the same stages on the device as on the reference, and
+// they matter: the reference's frame moves with them.
+std::vector<float> varyingDiagonals(const TrackingMesh& mesh) {
+  std::vector<float> out(mesh.vertexCount());
+  for (int v = 0; v < mesh.vertexCount(); ++v)
+    out[v] = mesh.diagonal * (0.25f + 0.75f * static_cast<float>(v % 4));
+  return out;
+}
+
+TEST(ClSurfaceTracking, PerVertexLengthsMatchTheReference) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    const std::vector<float> diagonals = varyingDiagonals(
+        TrackingMesh::build(rig.mesh, test::implicitFieldsOf(name)));
+    checkStages(rig, sharedFields(name), clipPoses(rig, 5).back(),
+                FieldStorage::kAuto, false, &diagonals);
+    checkStages(rig, sharedFields(name), clipPoses(rig, 5).back(),
+                FieldStorage::kAuto, true, &diagonals);
+  }
+  SCOPED_TRACE("10k cylinder at 135 degrees");
+  const BentCylinder& c = bentCylinder();
+  TrackingMesh varying = TrackingMesh::build(c.rig.mesh, *c.fields);
+  const std::vector<float> diagonals = varyingDiagonals(varying);
+  const TransformList pose = bendAt(c.rig, c.joint, 135);
+  checkStages(c.rig, c.fields, pose, FieldStorage::kAuto, false, &diagonals);
+  // The reference with and without them: the smoothing radius (a quarter
+  // to 2.5 times the diagonal's) changes the fold's frame.
+  const TrackingMesh uniform = varying;
+  varying.vertex_diagonals = diagonals;
+  CpuSkinning dqs(c.rig.mesh, c.rig.weights, c.rig.skeleton.jointCount());
+  dqs.run(SkinningMethod::kDualQuaternion, pose, false);
+  CpuSurfaceTracking a(c.fields->grids, &c.fields->composition, uniform);
+  CpuSurfaceTracking b(c.fields->grids, &c.fields->composition, varying);
+  a.run(pose, dqs.positions(), dqs.normals());
+  b.run(pose, dqs.positions(), dqs.normals());
+  EXPECT_GT(test::largestRowDistance(a.positions(), b.positions()).distance,
+            1e-4f * c.rig.boundingBoxDiagonal());
+  varying.vertex_diagonals.pop_back();
+  EXPECT_THROW(CpuSurfaceTracking(c.fields->grids, nullptr, varying), Error);
 }
 
 // The stages chained on the device as run() chains them (no state copied

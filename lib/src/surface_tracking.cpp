@@ -221,6 +221,29 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
   return out;
 }
 
+TrackingLengths trackingLengths(const TrackingMesh& mesh,
+                                const SurfaceTrackingOptions& options) {
+  const int n = mesh.vertexCount();
+  if (!mesh.vertex_diagonals.empty() &&
+      static_cast<int>(mesh.vertex_diagonals.size()) != n)
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "surface tracking: " + std::to_string(mesh.vertex_diagonals.size()) +
+            " vertex diagonals for " + std::to_string(n) + " vertices");
+  TrackingLengths out;
+  out.max_step.resize(n);
+  out.min_gradient.resize(n);
+  out.smoothing_radius.resize(n);
+  for (int v = 0; v < n; ++v) {
+    const float diagonal = mesh.diagonalOf(v);
+    out.max_step[v] = options.max_step * diagonal;
+    out.min_gradient[v] =
+        diagonal > 0 ? options.min_gradient / diagonal : options.min_gradient;
+    out.smoothing_radius[v] = options.smoothing_radius * diagonal;
+  }
+  return out;
+}
+
 std::vector<int> activePartners(const TrackingMesh& mesh,
                                 const TransformList& skinning) {
   constexpr int kMax = TrackingMesh::kMaxPartners;
@@ -475,6 +498,7 @@ CpuSurfaceTracking::CpuSurfaceTracking(const FieldGridSet& fields,
     throw Error(ErrorCode::kInvalidArgument,
                 "CpuSurfaceTracking: the tracking mesh is inconsistent (built "
                 "by TrackingMesh::build?)");
+  lengths_ = trackingLengths(mesh, options);
 }
 
 void CpuSurfaceTracking::checkBegun(const char* stage) const {
@@ -572,13 +596,11 @@ void CpuSurfaceTracking::project(int steps) {
   const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
   const float cos_contact = std::cos(options_.contact_angle_degrees *
                                      static_cast<float>(M_PI) / 180.f);
-  const float max_step = options_.max_step * mesh_->diagonal;
-  const float min_gradient = mesh_->diagonal > 0
-                                 ? options_.min_gradient / mesh_->diagonal
-                                 : options_.min_gradient;
   const int n = mesh_->vertexCount();
   std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
   for (int v = 0; v < n; ++v) {
+    const float max_step = lengths_.max_step[v];
+    const float min_gradient = lengths_.min_gradient[v];
     for (int s = 0; s < steps; ++s) {
       if (states_[v] != TrackState::kMarching) break;
       Eigen::Vector3f x = positions_.row(v).transpose();
@@ -695,7 +717,6 @@ void CpuSurfaceTracking::smooth() {
     beta_[2 * v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
     beta_[2 * v + 1] = states_[v] == TrackState::kCrease ? 1.f : 0.f;
   }
-  const float radius = options_.smoothing_radius * mesh_->diagonal;
   const int diffusions =
       std::max(options_.beta_diffusion, options_.crease_diffusion);
   for (int k = 0; k < diffusions; ++k) {
@@ -704,6 +725,7 @@ void CpuSurfaceTracking::smooth() {
     beta_scratch_ = beta_;
     for (int v = 0; v < n; ++v) {
       if (rings.kinds[v] == RingKind::kDuplicate) continue;
+      const float radius = lengths_.smoothing_radius[v];
       float count = 1.f;
       for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
         count += mesh_->ring_lengths[i] <= radius ? 1.f : 0.f;
@@ -731,6 +753,7 @@ void CpuSurfaceTracking::smooth() {
           mesh_->relaxation.rules[v] == RelaxationRule::kFixed)
         continue;
       const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
+      const float radius = lengths_.smoothing_radius[v];
       const Eigen::Vector3f x = positions_.row(v).transpose();
       Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
       int near = 0;

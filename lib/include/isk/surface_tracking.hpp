@@ -170,12 +170,21 @@ struct TrackingMesh {
   // a rest normal within ~8 degrees of its own (hard edges stay hard).
   VertexTriangleAdjacency normal_adjacency;
   float diagonal = 0;  // rest bounding-box diagonal (the model's size)
+  // #V, or empty: every vertex's `diagonal`. The tracking's lengths
+  // (trackingLengths) follow the size of the vertex's own character: a
+  // crowd of different characters (isk::ImplicitCrowd) gives each of its
+  // vertices its character's diagonal.
+  std::vector<float> vertex_diagonals;
   // The tracked vertices (iso value > 0, representatives) in the order the
   // projection kernel marches them: by home field, then along a Morton
   // curve of the rest positions (locality of the grid samples).
   std::vector<int> march_order;
 
   int vertexCount() const { return static_cast<int>(iso_values.size()); }
+  // Vertex v's diagonal (vertex_diagonals[v], else diagonal).
+  float diagonalOf(int v) const {
+    return vertex_diagonals.empty() ? diagonal : vertex_diagonals[v];
+  }
   // Vertices that march: representatives with an iso value > 0.
   int trackedCount() const;
 
@@ -185,6 +194,19 @@ struct TrackingMesh {
   // values, partition, grids, composition).
   static TrackingMesh build(const Mesh& mesh, const ImplicitFields& fields);
 };
+
+// Per vertex, the lengths of tracking in model units, from the options'
+// fractions of the vertex's diagonal (TrackingMesh::diagonalOf): the
+// largest move of a projection step, the smallest |grad f| (the option over
+// the diagonal; the option itself for a zero diagonal) and the smoothing
+// radius. The CPU reference and the OpenCL path both take them from here.
+struct TrackingLengths {
+  std::vector<float> max_step;          // #V
+  std::vector<float> min_gradient;      // #V
+  std::vector<float> smoothing_radius;  // #V
+};
+TrackingLengths trackingLengths(const TrackingMesh& mesh,
+                                const SurfaceTrackingOptions& options);
 
 // Per field (#fields by kMaxPartners, -1 padded) the fields that are not
 // other parts for the contact by home field at the pose `skinning`
@@ -319,6 +341,7 @@ class CpuSurfaceTracking {
   const TrackingMesh* mesh_;
   SurfaceTrackingOptions options_;
   TransformList skinning_;
+  TrackingLengths lengths_;
   Matrix3Xf positions_, scratch_, fallback_normals_, normals_;
   std::vector<TrackState> states_;
   std::vector<int> partners_;           // activePartners of the frame's pose

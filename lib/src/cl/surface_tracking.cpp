@@ -43,8 +43,7 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       context_(fields.sharedContext()),
       options_(options),
       mesh_(&mesh),
-      vertex_count_(mesh.vertexCount()),
-      diagonal_(mesh.diagonal) {
+      vertex_count_(mesh.vertexCount()) {
   options.validate().throwIfFailed("SurfaceTrackingOptions");
   if (mesh.rings.vertexCount() != vertex_count_ ||
       mesh.relaxation.rules.size() != mesh.iso_values.size())
@@ -103,6 +102,16 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
         uploadReadOnly(*context_, permuted(mesh.home_field), &bytes_);
     home_margins_ =
         uploadReadOnly(*context_, permuted(mesh.home_margin), &bytes_);
+    const TrackingLengths lengths = trackingLengths(mesh, options);
+    std::vector<cl_float2> step_limits(vertex_count_);
+    std::vector<float> radii(vertex_count_);
+    for (int k = 0; k < vertex_count_; ++k) {
+      step_limits[k] = {
+          {lengths.max_step[order_[k]], lengths.min_gradient[order_[k]]}};
+      radii[k] = lengths.smoothing_radius[order_[k]];
+    }
+    step_limits_ = uploadReadOnly(*context_, step_limits, &bytes_);
+    radii_ = uploadReadOnly(*context_, radii, &bytes_);
     const size_t fields = static_cast<size_t>(mesh.field_count);
     auto int_buffer = [&](size_t count) {
       bytes_ += std::max<size_t>(count, 1) * sizeof(int);
@@ -296,9 +305,6 @@ void ClSurfaceTracking::project(int steps) {
   checkBegun("project");
   const float cos_contact = std::cos(options_.contact_angle_degrees *
                                      static_cast<float>(M_PI) / 180.f);
-  const float max_step = options_.max_step * diagonal_;
-  const float min_gradient =
-      diagonal_ > 0 ? options_.min_gradient / diagonal_ : options_.min_gradient;
   try {
     project_.setArg(0, static_cast<cl_uint>(march_count_));
     project_.setArg(1, positions_[current_]);
@@ -306,9 +312,9 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(3, states_);
     project_.setArg(4, prev_gradients_);
     project_.setArg(5, static_cast<cl_int>(steps));
-    project_.setArg(6, cl_float4{{options_.sigma, cos_contact,
-                                  options_.tolerance, max_step}});
-    project_.setArg(7, min_gradient);
+    project_.setArg(
+        6, cl_float4{{options_.sigma, cos_contact, options_.tolerance, 0.f}});
+    project_.setArg(7, step_limits_);
     setContactArgs(project_, 8);
     fields_->setFieldArgs(project_, 16);
     if (!options_.occupied_cells) project_.setArg(20, every_cell_);
@@ -345,7 +351,6 @@ void ClSurfaceTracking::smooth() {
   checkBegun("smooth");
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
-    const float radius = options_.smoothing_radius * diagonal_;
     beta_init_.setArg(0, n);
     beta_init_.setArg(1, states_);
     beta_init_.setArg(2, beta_[0]);
@@ -362,7 +367,7 @@ void ClSurfaceTracking::smooth() {
       beta_diffuse_.setArg(2, ring_offsets_);
       beta_diffuse_.setArg(3, ring_neighbours_);
       beta_diffuse_.setArg(4, ring_lengths_);
-      beta_diffuse_.setArg(5, radius);
+      beta_diffuse_.setArg(5, radii_);
       beta_diffuse_.setArg(6, beta_[b]);
       beta_diffuse_.setArg(7, beta_[1 - b]);
       launch(beta_diffuse_, kSmoothing);
@@ -382,7 +387,7 @@ void ClSurfaceTracking::smooth() {
       smooth_.setArg(3, ring_offsets_);
       smooth_.setArg(4, ring_neighbours_);
       smooth_.setArg(5, ring_lengths_);
-      smooth_.setArg(6, radius);
+      smooth_.setArg(6, radii_);
       smooth_.setArg(7, beta_[0]);
       smooth_.setArg(8, positions_[current_]);
       smooth_.setArg(9, positions_[1 - current_]);

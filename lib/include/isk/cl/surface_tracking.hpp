@@ -108,7 +108,6 @@ class ClSurfaceTracking {
   std::vector<int> partners_staging_;   // activePartners of the last pose
   FieldNeighbourhoods neighbourhoods_;  // of the last pose (staging)
   int vertex_count_ = 0;
-  float diagonal_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
   cl::Buffer every_cell_;  // options.occupied_cells off: all bits set
@@ -117,6 +116,8 @@ class ClSurfaceTracking {
       neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
       ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
       normal_offsets_, normal_triangles_;
+  // trackingLengths per vertex: (max step, min gradient), smoothing radius.
+  cl::Buffer step_limits_, radii_;
   // The device's vertex order (see the constructor): order_[k] is the
   // mesh's vertex at device index k; the first march_count_ are the
   // tracked vertices in march order.
