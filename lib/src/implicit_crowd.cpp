@@ -18,149 +18,195 @@ namespace {
   throw Error(ErrorCode::kInvalidArgument, message);
 }
 
-// copies * count as an int; throws naming `what` past int range.
-int scaled(int count, int copies, const char* what) {
-  const long long total = static_cast<long long>(count) * copies;
-  if (total > std::numeric_limits<int>::max())
-    invalid(std::string("ImplicitCrowd: ") + std::to_string(copies) +
-            " instances of " + std::to_string(count) + " " + what +
-            " are more than an int can index");
-  return static_cast<int>(total);
-}
+// One character's rows of a crowd: its mesh and weights, `copies` times,
+// each copy's joints `joints` after the last's.
+struct Copies {
+  const Mesh* mesh;
+  const SkinWeights* weights;
+  int copies;
+  int joints;
+};
 
-// values repeated `copies` times.
-template <typename T>
-std::vector<T> repeated(const std::vector<T>& values, int copies) {
-  std::vector<T> out;
-  out.reserve(values.size() * static_cast<size_t>(copies));
-  for (int i = 0; i < copies; ++i)
-    out.insert(out.end(), values.begin(), values.end());
-  return out;
-}
-
-// Indices repeated `copies` times, copy i's non-negative ones shifted by
-// i * shift (negative ones, "none", stay).
-template <typename T>
-std::vector<T> shifted(const std::vector<T>& indices, int copies,
-                       long long shift) {
-  std::vector<T> out;
-  out.reserve(indices.size() * static_cast<size_t>(copies));
-  for (int i = 0; i < copies; ++i)
-    for (const T v : indices)
-      out.push_back(v >= 0 ? static_cast<T>(v + i * shift) : v);
-  return out;
-}
-
-Mesh repeatedMesh(const Mesh& mesh, int copies) {
-  const int v = mesh.vertexCount();
-  const int f = mesh.triangleCount();
+// The meshes one after the other (triangles shifted; parts named by
+// instance).
+Mesh concatenatedMesh(const std::vector<Copies>& parts) {
+  Eigen::Index vertices = 0, triangles = 0;
+  for (const Copies& c : parts) {
+    vertices += static_cast<Eigen::Index>(c.mesh->vertexCount()) * c.copies;
+    triangles += static_cast<Eigen::Index>(c.mesh->triangleCount()) * c.copies;
+  }
   Mesh out;
-  out.positions.resize(static_cast<Eigen::Index>(v) * copies, 3);
-  out.normals.resize(static_cast<Eigen::Index>(v) * copies, 3);
-  out.triangles.resize(static_cast<Eigen::Index>(f) * copies, 3);
-  for (int i = 0; i < copies; ++i) {
-    out.positions.middleRows(static_cast<Eigen::Index>(i) * v, v) =
-        mesh.positions;
-    out.normals.middleRows(static_cast<Eigen::Index>(i) * v, v) = mesh.normals;
-    out.triangles.middleRows(static_cast<Eigen::Index>(i) * f, f) =
-        mesh.triangles.array() + i * v;
-    for (MeshPart part : mesh.parts) {
-      part.name = "instance " + std::to_string(i) + " " + part.name;
-      part.first_vertex += i * v;
-      part.first_triangle += i * f;
-      out.parts.push_back(part);
+  out.positions.resize(vertices, 3);
+  out.normals.resize(vertices, 3);
+  out.triangles.resize(triangles, 3);
+  Eigen::Index v0 = 0, f0 = 0;
+  int instance = 0;
+  for (const Copies& c : parts) {
+    const Mesh& mesh = *c.mesh;
+    const int v = mesh.vertexCount();
+    const int f = mesh.triangleCount();
+    for (int i = 0; i < c.copies; ++i, ++instance) {
+      out.positions.middleRows(v0, v) = mesh.positions;
+      out.normals.middleRows(v0, v) = mesh.normals;
+      out.triangles.middleRows(f0, f) =
+          mesh.triangles.array() + static_cast<int>(v0);
+      for (MeshPart part : mesh.parts) {
+        part.name = "instance " + std::to_string(instance) + " " + part.name;
+        part.first_vertex += static_cast<int>(v0);
+        part.first_triangle += static_cast<int>(f0);
+        out.parts.push_back(part);
+      }
+      v0 += v;
+      f0 += f;
     }
   }
   return out;
 }
 
-SkinWeights repeatedWeights(const SkinWeights& weights, int copies,
-                            int joints) {
+// The weights one after the other, each copy's joints shifted past the
+// joints of the copies before it.
+SkinWeights concatenatedWeights(const std::vector<Copies>& parts) {
   SkinWeights out;
-  const uint32_t influences = static_cast<uint32_t>(weights.joints.size());
   out.offsets.push_back(0);
-  for (int i = 0; i < copies; ++i)
-    for (int v = 0; v < weights.vertexCount(); ++v)
-      out.offsets.push_back(weights.offsets[v + 1] + i * influences);
-  out.joints.reserve(weights.joints.size() * copies);
-  for (int i = 0; i < copies; ++i)
-    for (const uint32_t j : weights.joints)
-      out.joints.push_back(j + i * joints);
-  out.weights = repeated(weights.weights, copies);
+  uint32_t joint_offset = 0;
+  for (const Copies& c : parts) {
+    const SkinWeights& weights = *c.weights;
+    for (int i = 0; i < c.copies; ++i) {
+      const uint32_t influence_offset = out.offsets.back();
+      for (int v = 0; v < weights.vertexCount(); ++v)
+        out.offsets.push_back(weights.offsets[v + 1] + influence_offset);
+      for (const uint32_t j : weights.joints)
+        out.joints.push_back(j + joint_offset);
+      out.weights.insert(out.weights.end(), weights.weights.begin(),
+                         weights.weights.end());
+      joint_offset += static_cast<uint32_t>(c.joints);
+    }
+  }
   return out;
 }
 
 }  // namespace
+
+TrackingMesh concatenateTrackingMeshes(
+    const std::vector<TrackingMeshCopies>& parts) {
+  long long vertices = 0, fields = 0, ring_entries = 0, adjacency = 0,
+            triangles = 0;
+  bool one_diagonal = true;
+  for (size_t p = 0; p < parts.size(); ++p) {
+    const TrackingMeshCopies& c = parts[p];
+    const std::string where =
+        "concatenateTrackingMeshes: part " + std::to_string(p) + ": ";
+    if (!c.mesh) invalid(where + "no tracking mesh");
+    if (c.copies < 1)
+      invalid(where + std::to_string(c.copies) +
+              " copies, expected at least 1");
+    if (c.joints_per_copy < 0)
+      invalid(where + std::to_string(c.joints_per_copy) + " joints per copy");
+    const TrackingMesh& m = *c.mesh;
+    vertices += static_cast<long long>(m.vertexCount()) * c.copies;
+    fields += static_cast<long long>(m.field_count) * c.copies;
+    ring_entries +=
+        static_cast<long long>(m.rings.neighbours.size()) * c.copies;
+    adjacency +=
+        static_cast<long long>(m.normal_adjacency.triangles.size()) * c.copies;
+    triangles += static_cast<long long>(m.triangles.rows()) * c.copies;
+    one_diagonal = one_diagonal && m.vertex_diagonals.empty() &&
+                   m.diagonal == parts[0].mesh->diagonal;
+  }
+  if (parts.empty()) invalid("concatenateTrackingMeshes: no parts");
+  const long long kMax = std::numeric_limits<int>::max();
+  for (const auto& [count, what] :
+       {std::pair{vertices, "vertices"}, std::pair{fields, "fields"},
+        std::pair{ring_entries, "one-ring entries"},
+        std::pair{adjacency, "adjacency entries"},
+        std::pair{triangles, "triangles"}})
+    if (count > kMax)
+      invalid("concatenateTrackingMeshes: " + std::to_string(count) + " " +
+              what + " are more than an int can index");
+
+  TrackingMesh out;
+  out.field_count = static_cast<int>(fields);
+  // The lengths of tracking follow each character's size: one diagonal
+  // where every part has the same, else one per vertex.
+  out.diagonal = parts[0].mesh->diagonal;
+  out.rings.offsets.push_back(0);
+  out.normal_adjacency.offsets.push_back(0);
+  out.triangles.resize(static_cast<Eigen::Index>(triangles), 3);
+  int v0 = 0, field0 = 0, joint0 = 0, f0 = 0;
+  for (const TrackingMeshCopies& c : parts) {
+    const TrackingMesh& m = *c.mesh;
+    const int v = m.vertexCount();
+    const int f = static_cast<int>(m.triangles.rows());
+    auto shift = [](const std::vector<int>& indices, int by,
+                    std::vector<int>& to) {
+      for (const int i : indices) to.push_back(i >= 0 ? i + by : i);
+    };
+    auto append = [](const auto& values, auto& to) {
+      to.insert(to.end(), values.begin(), values.end());
+    };
+    for (int copy = 0; copy < c.copies; ++copy) {
+      shift(m.rings.representative, v0, out.rings.representative);
+      shift(m.rings.neighbours, v0, out.rings.neighbours);
+      append(m.rings.kinds, out.rings.kinds);
+      const uint32_t ring0 = out.rings.offsets.back();
+      for (int k = 1; k <= v; ++k)
+        out.rings.offsets.push_back(m.rings.offsets[k] + ring0);
+      append(m.relaxation.weights, out.relaxation.weights);
+      append(m.relaxation.rules, out.relaxation.rules);
+      append(m.iso_values, out.iso_values);
+      shift(m.home_field, field0, out.home_field);
+      append(m.home_margin, out.home_margin);
+      for (TrackingMesh::PartnerPair pair : m.partner_pairs) {
+        pair.field_a += field0;
+        pair.field_b += field0;
+        pair.joint_a += joint0;
+        pair.joint_b += joint0;
+        out.partner_pairs.push_back(pair);
+      }
+      append(m.ring_lengths, out.ring_lengths);
+      out.triangles.middleRows(f0, f) = m.triangles.array() + v0;
+      const uint32_t adjacency0 =
+          static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+      for (int k = 1; k <= v; ++k)
+        out.normal_adjacency.offsets.push_back(m.normal_adjacency.offsets[k] +
+                                               adjacency0);
+      for (const uint32_t t : m.normal_adjacency.triangles)
+        out.normal_adjacency.triangles.push_back(t + f0);
+      if (!one_diagonal)
+        for (int k = 0; k < v; ++k)
+          out.vertex_diagonals.push_back(m.diagonalOf(k));
+      // Copy by copy, each in its own march order: by home field (copy
+      // i's after copy i - 1's), then along the Morton curve.
+      shift(m.march_order, v0, out.march_order);
+      v0 += v;
+      field0 += m.field_count;
+      joint0 += c.joints_per_copy;
+      f0 += f;
+    }
+  }
+  return out;
+}
 
 TrackingMesh replicateTrackingMesh(const TrackingMesh& mesh, int copies,
                                    int joints_per_copy) {
   if (copies < 1)
     invalid("replicateTrackingMesh: " + std::to_string(copies) +
             " copies, expected at least 1");
-  const int v = mesh.vertexCount();
-  scaled(v, copies, "vertices");
-  scaled(mesh.field_count, copies, "fields");
-  scaled(static_cast<int>(mesh.rings.neighbours.size()), copies,
-         "one-ring entries");
-  scaled(static_cast<int>(mesh.normal_adjacency.triangles.size()), copies,
-         "adjacency entries");
-  const int f = static_cast<int>(mesh.triangles.rows());
-  scaled(f, copies, "triangles");
-  TrackingMesh out;
-  out.rings.representative = shifted(mesh.rings.representative, copies, v);
-  out.rings.neighbours = shifted(mesh.rings.neighbours, copies, v);
-  out.rings.kinds = repeated(mesh.rings.kinds, copies);
-  const uint32_t ring_entries =
-      static_cast<uint32_t>(mesh.rings.neighbours.size());
-  out.rings.offsets.push_back(0);
-  for (int i = 0; i < copies; ++i)
-    for (int k = 1; k <= v; ++k)
-      out.rings.offsets.push_back(mesh.rings.offsets[k] + i * ring_entries);
-  out.relaxation.weights = repeated(mesh.relaxation.weights, copies);
-  out.relaxation.rules = repeated(mesh.relaxation.rules, copies);
-  out.iso_values = repeated(mesh.iso_values, copies);
-  out.home_field = shifted(mesh.home_field, copies, mesh.field_count);
-  out.home_margin = repeated(mesh.home_margin, copies);
-  for (int i = 0; i < copies; ++i)
-    for (TrackingMesh::PartnerPair p : mesh.partner_pairs) {
-      p.field_a += i * mesh.field_count;
-      p.field_b += i * mesh.field_count;
-      p.joint_a += i * joints_per_copy;
-      p.joint_b += i * joints_per_copy;
-      out.partner_pairs.push_back(p);
-    }
-  out.field_count = mesh.field_count * copies;
-  out.ring_lengths = repeated(mesh.ring_lengths, copies);
-  out.triangles.resize(static_cast<Eigen::Index>(f) * copies, 3);
-  for (int i = 0; i < copies; ++i)
-    out.triangles.middleRows(static_cast<Eigen::Index>(i) * f, f) =
-        mesh.triangles.array() + i * v;
-  const uint32_t adjacency =
-      static_cast<uint32_t>(mesh.normal_adjacency.triangles.size());
-  out.normal_adjacency.offsets.push_back(0);
-  for (int i = 0; i < copies; ++i)
-    for (int k = 1; k <= v; ++k)
-      out.normal_adjacency.offsets.push_back(mesh.normal_adjacency.offsets[k] +
-                                             i * adjacency);
-  out.normal_adjacency.triangles.reserve(static_cast<size_t>(adjacency) *
-                                         copies);
-  for (int i = 0; i < copies; ++i)
-    for (const uint32_t t : mesh.normal_adjacency.triangles)
-      out.normal_adjacency.triangles.push_back(t + i * f);
-  // The size of one instance: the step and smoothing lengths stay its own.
-  out.diagonal = mesh.diagonal;
-  // Instance by instance, each in its own march order: by home field (copy
-  // i's come after copy i - 1's), then along the Morton curve.
-  out.march_order = shifted(mesh.march_order, copies, v);
-  return out;
+  return concatenateTrackingMeshes({{&mesh, copies, joints_per_copy}});
 }
 
 struct ImplicitCrowd::State {
+  struct Character {
+    std::shared_ptr<const ImplicitFields> fields;
+    int instances = 0, vertices = 0, joints = 0;
+    std::vector<std::string> joint_names;
+  };
   std::shared_ptr<ClContext> context;
   ImplicitSkinnerOptions options;
-  std::shared_ptr<const ImplicitFields> fields;
-  int instances = 0, vertices = 0, joints = 0;
-  std::vector<std::string> joint_names;
+  std::vector<Character> characters;
+  // Per instance: its character, first result row and first joint.
+  std::vector<int> character_of, first_vertex, first_joint;
+  int instances = 0, vertices = 0, joints = 0;  // all instances'
   std::unique_ptr<const TrackingMesh> tracking_mesh;
   std::unique_ptr<ClSkinning> skinning;
   std::unique_ptr<ClFieldEvaluation> field_evaluation;
@@ -182,47 +228,103 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
                              std::shared_ptr<const ImplicitFields> fields,
                              int instances,
                              const ImplicitSkinnerOptions& options)
+    : ImplicitCrowd(std::move(context), {{&rig, std::move(fields), instances}},
+                    options) {}
+
+ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context,
+                             const std::vector<CrowdCharacter>& characters,
+                             const ImplicitSkinnerOptions& options)
     : state_(std::make_unique<State>()) {
   State& s = *state_;
-  if (instances < 1)
-    invalid("ImplicitCrowd: " + std::to_string(instances) +
-            " instances, expected at least 1");
+  if (characters.empty()) invalid("ImplicitCrowd: no characters");
+  // "character c: " where there are several.
+  auto where = [&](size_t c) {
+    return characters.size() > 1 ? "character " + std::to_string(c) + ": "
+                                 : std::string();
+  };
+  long long fields_total = 0;
+  for (size_t c = 0; c < characters.size(); ++c) {
+    const CrowdCharacter& ch = characters[c];
+    if (ch.instances < 1)
+      invalid("ImplicitCrowd: " + where(c) + std::to_string(ch.instances) +
+              " instances, expected at least 1");
+    if (!ch.rig) invalid("ImplicitCrowd: " + where(c) + "no rig");
+    if (!ch.fields) invalid("ImplicitCrowd: " + where(c) + "no fields");
+    fields_total +=
+        static_cast<long long>(ch.fields->grids.fieldCount()) * ch.instances;
+  }
   if (!context) invalid("ImplicitCrowd: no context");
-  if (!fields) invalid("ImplicitCrowd: no fields");
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
-  rig.validate().throwIfFailed(rig.source);
-  if (const Validation v = fieldsFitRig(*fields, rig); !v)
-    invalid("ImplicitCrowd: " + v.reason());
+  for (size_t c = 0; c < characters.size(); ++c) {
+    const Rig& rig = *characters[c].rig;
+    rig.validate().throwIfFailed(rig.source);
+    if (const Validation v = fieldsFitRig(*characters[c].fields, rig); !v)
+      invalid("ImplicitCrowd: " + where(c) + v.reason());
+  }
   // The neighbourhood lists tag a field index in 16 bits.
   constexpr int kMaxFields = FieldNeighbourhoods::kFieldMask;
-  if (static_cast<long long>(fields->grids.fieldCount()) * instances >
-      kMaxFields)
-    invalid("ImplicitCrowd: " + std::to_string(instances) + " instances of " +
-            std::to_string(fields->grids.fieldCount()) +
-            " fields are more than the " + std::to_string(kMaxFields) +
-            " fields a crowd can hold");
+  if (fields_total > kMaxFields) {
+    std::string counts;
+    for (const CrowdCharacter& ch : characters)
+      counts += (counts.empty() ? "" : " and ") + std::to_string(ch.instances) +
+                " instances of " +
+                std::to_string(ch.fields->grids.fieldCount()) + " fields";
+    invalid("ImplicitCrowd: " + counts + " are more than the " +
+            std::to_string(kMaxFields) + " fields a crowd can hold");
+  }
   s.context = std::move(context);
   s.options = options;
-  s.fields = std::move(fields);
-  s.instances = instances;
-  s.vertices = rig.mesh.vertexCount();
-  s.joints = rig.skeleton.jointCount();
-  scaled(s.vertices, instances, "vertices");
-  scaled(s.joints, instances, "joints");
-  scaled(static_cast<int>(std::min<size_t>(rig.weights.joints.size(),
-                                           std::numeric_limits<int>::max())),
-         instances, "skin influences");
-  for (const Joint& j : rig.skeleton.joints) s.joint_names.push_back(j.name);
-  const TrackingMesh one = TrackingMesh::build(rig.mesh, *s.fields);
+  long long vertices = 0, joints = 0, influences = 0;
+  std::vector<TrackingMesh> ones;  // one instance's tracking mesh each
+  ones.reserve(characters.size());
+  std::vector<TrackingMeshCopies> tracking_parts;
+  std::vector<Copies> skinning_parts;
+  std::vector<ClFieldEvaluation::FieldGroup> field_groups;
+  for (size_t c = 0; c < characters.size(); ++c) {
+    const CrowdCharacter& ch = characters[c];
+    const Rig& rig = *ch.rig;
+    State::Character character;
+    character.fields = ch.fields;
+    character.instances = ch.instances;
+    character.vertices = rig.mesh.vertexCount();
+    character.joints = rig.skeleton.jointCount();
+    for (const Joint& j : rig.skeleton.joints)
+      character.joint_names.push_back(j.name);
+    for (int i = 0; i < ch.instances; ++i) {
+      s.character_of.push_back(static_cast<int>(c));
+      s.first_vertex.push_back(static_cast<int>(
+          std::min<long long>(vertices, std::numeric_limits<int>::max())));
+      s.first_joint.push_back(static_cast<int>(
+          std::min<long long>(joints, std::numeric_limits<int>::max())));
+      vertices += character.vertices;
+      joints += character.joints;
+      influences += static_cast<long long>(rig.weights.joints.size());
+    }
+    for (const auto& [count, what] :
+         {std::pair{vertices, "vertices"}, std::pair{joints, "joints"},
+          std::pair{influences, "skin influences"}})
+      if (count > std::numeric_limits<int>::max())
+        invalid("ImplicitCrowd: " + std::to_string(count) + " " + what +
+                " in all are more than an int can index");
+    ones.push_back(TrackingMesh::build(rig.mesh, *ch.fields));
+    tracking_parts.push_back({&ones.back(), ch.instances, character.joints});
+    skinning_parts.push_back(
+        {&rig.mesh, &rig.weights, ch.instances, character.joints});
+    // Each character's grids once, shared by its instances.
+    field_groups.push_back({&ch.fields->grids, character.joints,
+                            &ch.fields->composition, ch.instances});
+    s.characters.push_back(std::move(character));
+  }
+  s.instances = static_cast<int>(s.character_of.size());
+  s.vertices = static_cast<int>(vertices);
+  s.joints = static_cast<int>(joints);
   s.tracking_mesh = std::make_unique<const TrackingMesh>(
-      replicateTrackingMesh(one, instances, s.joints));
+      concatenateTrackingMeshes(tracking_parts));
   s.skinning = std::make_unique<ClSkinning>(
-      s.context, repeatedMesh(rig.mesh, instances),
-      repeatedWeights(rig.weights, instances, s.joints), s.joints * instances);
-  // The grids once, shared by the instances.
+      s.context, concatenatedMesh(skinning_parts),
+      concatenatedWeights(skinning_parts), s.joints);
   s.field_evaluation = std::make_unique<ClFieldEvaluation>(
-      s.context, s.fields->grids, s.joints, options.storage,
-      &s.fields->composition, instances);
+      s.context, field_groups, options.storage);
   s.tracking = std::make_unique<ClSurfaceTracking>(
       *s.field_evaluation, *s.tracking_mesh, options.tracking);
 }
@@ -249,21 +351,22 @@ void ImplicitCrowd::run(const std::vector<TransformList>& skinning) {
             " poses given for a crowd of " + std::to_string(s.instances) +
             " instances");
   s.staging.clear();
-  s.staging.reserve(static_cast<size_t>(s.joints) * s.instances);
+  s.staging.reserve(static_cast<size_t>(s.joints));
   for (int i = 0; i < s.instances; ++i) {
+    const State::Character& character = s.characters[s.character_of[i]];
     const TransformList& pose = skinning[i];
-    if (static_cast<int>(pose.size()) != s.joints)
+    if (static_cast<int>(pose.size()) != character.joints)
       invalid("ImplicitCrowd::run: instance " + std::to_string(i) + ": " +
               std::to_string(pose.size()) +
               " joint transforms given for a skeleton of " +
-              std::to_string(s.joints) + " joints");
-    for (int j = 0; j < s.joints; ++j)
-      if (!pose[j].matrix().allFinite())
-        invalid(
-            "ImplicitCrowd::run: instance " + std::to_string(i) +
-            ": the transform of joint " + std::to_string(j) +
-            (s.joint_names[j].empty() ? "" : " '" + s.joint_names[j] + "'") +
-            " is not finite");
+              std::to_string(character.joints) + " joints");
+    for (int j = 0; j < character.joints; ++j)
+      if (!pose[j].matrix().allFinite()) {
+        const std::string& name = character.joint_names[j];
+        invalid("ImplicitCrowd::run: instance " + std::to_string(i) +
+                ": the transform of joint " + std::to_string(j) +
+                (name.empty() ? "" : " '" + name + "'") + " is not finite");
+      }
     s.staging.insert(s.staging.end(), pose.begin(), pose.end());
   }
   s.times = {};
@@ -305,9 +408,6 @@ int ImplicitCrowd::contactCount() {
 const ImplicitStageTimes& ImplicitCrowd::lastTimes() const {
   return state("lastTimes", false).times;
 }
-const ImplicitFields& ImplicitCrowd::fields() const {
-  return *state("fields", false).fields;
-}
 const TrackingMesh& ImplicitCrowd::trackingMesh() const {
   return *state("trackingMesh", false).tracking_mesh;
 }
@@ -323,11 +423,45 @@ const ImplicitSkinnerOptions& ImplicitCrowd::options() const {
 int ImplicitCrowd::instanceCount() const {
   return state("instanceCount", false).instances;
 }
-int ImplicitCrowd::vertexCount() const {
-  return state("vertexCount", false).vertices;
+int ImplicitCrowd::character(const char* what, int c) const {
+  const State& s = state(what, false);
+  if (c < 0 || c >= static_cast<int>(s.characters.size()))
+    invalid(std::string("ImplicitCrowd::") + what + ": character " +
+            std::to_string(c) + " of a crowd of " +
+            std::to_string(s.characters.size()));
+  return c;
 }
-int ImplicitCrowd::jointCount() const {
-  return state("jointCount", false).joints;
+int ImplicitCrowd::instance(const char* what, int i) const {
+  const State& s = state(what, false);
+  if (i < 0 || i >= s.instances)
+    invalid(std::string("ImplicitCrowd::") + what + ": instance " +
+            std::to_string(i) + " of a crowd of " +
+            std::to_string(s.instances));
+  return i;
+}
+int ImplicitCrowd::characterCount() const {
+  return static_cast<int>(state("characterCount", false).characters.size());
+}
+const ImplicitFields& ImplicitCrowd::fields(int c) const {
+  return *state_->characters[character("fields", c)].fields;
+}
+int ImplicitCrowd::vertexCount(int c) const {
+  return state_->characters[character("vertexCount", c)].vertices;
+}
+int ImplicitCrowd::jointCount(int c) const {
+  return state_->characters[character("jointCount", c)].joints;
+}
+int ImplicitCrowd::totalVertexCount() const {
+  return state("totalVertexCount", false).vertices;
+}
+int ImplicitCrowd::characterOf(int i) const {
+  return state_->character_of[instance("characterOf", i)];
+}
+int ImplicitCrowd::instanceFirstVertex(int i) const {
+  return state_->first_vertex[instance("instanceFirstVertex", i)];
+}
+int ImplicitCrowd::instanceFirstJoint(int i) const {
+  return state_->first_joint[instance("instanceFirstJoint", i)];
 }
 
 }  // namespace isk

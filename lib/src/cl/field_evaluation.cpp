@@ -137,62 +137,153 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
                                      int joint_count, FieldStorage storage,
                                      const Composition* composition,
                                      int instances)
-    : context_(std::move(context)),
-      grid_count_(fields.fieldCount()),
-      resolution_(fields.resolution) {
+    : ClFieldEvaluation(
+          std::move(context),
+          {FieldGroup{&fields, joint_count, composition, instances}}, storage) {
+}
+
+ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
+                                     const std::vector<FieldGroup>& groups,
+                                     FieldStorage storage)
+    : context_(std::move(context)) {
   if (!context_) invalid("no context");
-  if (instances < 1)
-    invalid(std::to_string(instances) + " instances, expected at least 1");
-  if (static_cast<long long>(grid_count_) * instances > (1 << 24) ||
-      static_cast<long long>(std::max(joint_count, 1)) * instances >
-          std::numeric_limits<int>::max())
-    invalid(std::to_string(instances) + " instances of " +
-            std::to_string(grid_count_) + " fields and " +
-            std::to_string(joint_count) + " joints are too many");
-  field_count_ = grid_count_ * instances;
-  joint_count_ = joint_count * instances;
-  validateFields(fields, joint_count);
-  if (composition) {
-    validateComposition(*composition, grid_count_);
-    pair_count_ =
-        static_cast<int>(composition->blended_pairs.size()) * instances;
-    table_count_ = static_cast<int>(composition->tables.size());
-    table_resolution_ = composition->table_resolution;
+  if (groups.empty()) invalid("no field groups");
+  // A message about group g: "character g: " first when there are several.
+  auto where = [&](size_t g) {
+    return groups.size() > 1 ? "character " + std::to_string(g) + ": "
+                             : std::string();
+  };
+  const FieldGridSet* first = groups[0].fields;
+  long long fields_total = 0, joints_total = 0, grids_total = 0;
+  int table_resolution = 0;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const FieldGroup& group = groups[g];
+    if (!group.fields) invalid(where(g) + "no field set");
+    if (group.instances < 1)
+      invalid(where(g) + std::to_string(group.instances) +
+              " instances, expected at least 1");
+    const int count = group.fields->fieldCount();
+    if (static_cast<long long>(count) * group.instances > (1 << 24) ||
+        static_cast<long long>(std::max(group.joint_count, 1)) *
+                group.instances >
+            std::numeric_limits<int>::max())
+      invalid(where(g) + std::to_string(group.instances) + " instances of " +
+              std::to_string(count) + " fields and " +
+              std::to_string(group.joint_count) + " joints are too many");
+    try {
+      validateFields(*group.fields, group.joint_count);
+      if (group.composition) validateComposition(*group.composition, count);
+    } catch (const Error& e) {
+      if (groups.size() == 1) throw;
+      // invalid()'s prefix, then which character.
+      const std::string prefix = "ClFieldEvaluation: ";
+      std::string message = e.what();
+      if (message.rfind(prefix, 0) == 0) message.erase(0, prefix.size());
+      invalid(where(g) + message);
+    }
+    // One resolution and precision for every grid (the kernels' arguments),
+    // one for every operator table.
+    if (group.fields->resolution != first->resolution)
+      invalid(where(g) + "its grids have " +
+              std::to_string(group.fields->resolution) +
+              " nodes per axis, character 0's " +
+              std::to_string(first->resolution) +
+              " (a crowd shares one grid resolution)");
+    if (group.fields->precision != first->precision)
+      invalid(where(g) +
+              "its grids' precision differs from character 0's "
+              "(a crowd shares one grid precision)");
+    if (group.composition && !group.composition->tables.empty()) {
+      if (table_resolution == 0)
+        table_resolution = group.composition->table_resolution;
+      else if (group.composition->table_resolution != table_resolution)
+        invalid(where(g) + "its operator tables have " +
+                std::to_string(group.composition->table_resolution) +
+                " nodes per axis, another character's " +
+                std::to_string(table_resolution) +
+                " (a crowd shares one table resolution)");
+    }
+    grids_total += count;
+    fields_total += static_cast<long long>(count) * group.instances;
+    joints_total += static_cast<long long>(group.joint_count) * group.instances;
   }
-  // Every instance's fields: instance k's follow joint k * joint_count + j.
-  layout_.resolution = fields.resolution;
-  layout_.precision = fields.precision;
+  if (fields_total > (1 << 24) ||
+      joints_total > std::numeric_limits<int>::max())
+    invalid(std::to_string(fields_total) + " fields and " +
+            std::to_string(joints_total) + " joints in all are too many");
+  resolution_ = first->resolution;
+  grid_count_ = static_cast<int>(grids_total);
+  field_count_ = static_cast<int>(fields_total);
+  joint_count_ = static_cast<int>(joints_total);
+  layout_.resolution = first->resolution;
+  layout_.precision = first->precision;
+
+  // Every group's instances one after the other: instance k of group g
+  // follows joint joint_offset + k * joint_count + j, its field i samples
+  // grid grid_offset + i, its pairs use the group's tables and controllers.
+  std::vector<const FieldGrid*> stored;  // the grids, each once
+  std::vector<int> grid_of_field;
+  Composition merged;  // every group's controllers and tables
+  bool any_composition = false;
+  int joint_offset = 0, field_offset = 0;
   layout_.grids.reserve(static_cast<size_t>(field_count_));
-  for (int k = 0; k < instances; ++k) {
-    for (const int f : fields.field_of_joint)
-      layout_.field_of_joint.push_back(f < 0 ? f : f + k * grid_count_);
-    for (const FieldGrid& g : fields.grids) {
-      FieldGrid meta;
-      meta.joint = g.joint + k * joint_count;
-      meta.resolution = g.resolution;
-      meta.bone_to_model = g.bone_to_model;
-      meta.box_min = g.box_min;
-      meta.box_max = g.box_max;
-      layout_.grids.push_back(std::move(meta));
+  for (const FieldGroup& group : groups) {
+    const FieldGridSet& fields = *group.fields;
+    const int grid_offset = static_cast<int>(stored.size());
+    for (const FieldGrid& g : fields.grids) stored.push_back(&g);
+    const Composition* composition = group.composition;
+    const int table_offset = static_cast<int>(merged.tables.size());
+    const int controller_offset = static_cast<int>(merged.controllers.size());
+    if (composition) {
+      any_composition = true;
+      merged.tables.insert(merged.tables.end(), composition->tables.begin(),
+                           composition->tables.end());
+      merged.controllers.insert(merged.controllers.end(),
+                                composition->controllers.begin(),
+                                composition->controllers.end());
     }
-  }
-  if (composition) {  // the pairs of every instance
-    for (int k = 0; k < instances; ++k) {
-      for (FieldPair p : composition->pairs) {
-        p.joint += k * joint_count;
-        p.field_a += k * grid_count_;
-        p.field_b += k * grid_count_;
-        composition_layout_.pairs.push_back(p);
+    const int count = fields.fieldCount();
+    for (int k = 0; k < group.instances; ++k) {
+      for (const int f : fields.field_of_joint)
+        layout_.field_of_joint.push_back(f < 0 ? f : f + field_offset);
+      for (int i = 0; i < count; ++i) {
+        const FieldGrid& g = fields.grids[i];
+        FieldGrid meta;
+        meta.joint = g.joint + joint_offset;
+        meta.resolution = g.resolution;
+        meta.bone_to_model = g.bone_to_model;
+        meta.box_min = g.box_min;
+        meta.box_max = g.box_max;
+        layout_.grids.push_back(std::move(meta));
+        grid_of_field.push_back(grid_offset + i);
       }
-      for (const int b : composition->blended_pairs)
-        composition_layout_.blended_pairs.push_back(
-            b + k * static_cast<int>(composition->pairs.size()));
+      if (composition) {
+        const int pair_offset =
+            static_cast<int>(composition_layout_.pairs.size());
+        for (FieldPair p : composition->pairs) {
+          p.joint += joint_offset;
+          p.field_a += field_offset;
+          p.field_b += field_offset;
+          if (p.table >= 0) p.table += table_offset;
+          if (p.controller >= 0) p.controller += controller_offset;
+          composition_layout_.pairs.push_back(p);
+        }
+        for (const int b : composition->blended_pairs)
+          composition_layout_.blended_pairs.push_back(b + pair_offset);
+      }
+      joint_offset += group.joint_count;
+      field_offset += count;
     }
   }
-  chooseStorage(storage, fields);
-  half_ = fields.precision == GridPrecision::kHalf &&
+  pair_count_ = static_cast<int>(composition_layout_.blended_pairs.size());
+  table_count_ = static_cast<int>(merged.tables.size());
+  table_resolution_ = table_count_ > 0 ? table_resolution : 2;
+  merged.table_resolution = table_resolution_;
+
+  chooseStorage(storage, *first);
+  half_ = first->precision == GridPrecision::kHalf &&
           storage_ == FieldStorage::kBuffer;
-  if (fields.precision == GridPrecision::kHalf) {
+  if (first->precision == GridPrecision::kHalf) {
     if (storage_ == FieldStorage::kBuffer)
       storage_reason_ += "; half-precision grids stored as halves";
     else if (image_half_)
@@ -207,8 +298,8 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
   params_staging_.assign(
       static_cast<size_t>(std::max(field_count_, 1)) * kParamStride * 4, 0.f);
   for (int f = 0; f < field_count_; ++f) {
-    const int i = f % std::max(grid_count_, 1);  // the grid it samples
-    const FieldGrid& g = fields.grids[i];
+    const int i = grid_of_field[f];  // the grid it samples
+    const FieldGrid& g = *stored[i];
     float* p = &params_staging_[static_cast<size_t>(f) * kParamStride * 4];
     const Eigen::Vector3f spacing = g.spacing();
     for (int a = 0; a < 3; ++a) {
@@ -230,14 +321,14 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
     cl::Program program = context_->program("fields", buildOptions());
     kernel_ = cl::Kernel(program, "evaluate_fields");
     if (storage_ == FieldStorage::kImage)
-      uploadImage(fields);
+      uploadImage(stored);
     else
-      uploadBuffer(fields);
-    uploadComposition(composition);
+      uploadBuffer(stored);
+    uploadComposition(any_composition ? &merged : nullptr);
     // Every grid's cellValueBounds, one after the other.
     std::vector<uint8_t> cells;
-    for (const FieldGrid& g : fields.grids) {
-      const std::vector<uint8_t> bounds = cellValueBounds(g);
+    for (const FieldGrid* g : stored) {
+      const std::vector<uint8_t> bounds = cellValueBounds(*g);
       cells.insert(cells.end(), bounds.begin(), bounds.end());
     }
     if (cells.empty()) cells.push_back(0);  // a valid buffer
@@ -367,7 +458,8 @@ void ClFieldEvaluation::chooseStorage(FieldStorage requested,
   }
 }
 
-void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
+void ClFieldEvaluation::uploadImage(
+    const std::vector<const FieldGrid*>& grids) {
   const size_t n = static_cast<size_t>(resolution_);
   const size_t width = tiles_[0] * n;
   const size_t height = tiles_[1] * n;
@@ -379,7 +471,7 @@ void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
     const size_t ox = (i % tiles_[0]) * n;
     const size_t oy = ((i / tiles_[0]) % tiles_[1]) * n;
     const size_t oz = (i / (tiles_[0] * tiles_[1])) * n;
-    const float* src = fields.grids[i].nodes.data();
+    const float* src = grids[i]->nodes.data();
     for (size_t z = 0; z < n; ++z) {
       for (size_t y = 0; y < n; ++y) {
         std::memcpy(&atlas[4 * (ox + width * ((oy + y) + height * (oz + z)))],
@@ -403,12 +495,13 @@ void ClFieldEvaluation::uploadImage(const FieldGridSet& fields) {
   field_bytes_ = atlas.size() * sizeof(float);
 }
 
-void ClFieldEvaluation::uploadBuffer(const FieldGridSet& fields) {
+void ClFieldEvaluation::uploadBuffer(
+    const std::vector<const FieldGrid*>& grids) {
   const size_t per_field =
       4 * static_cast<size_t>(resolution_) * resolution_ * resolution_;
   std::vector<float> nodes(per_field * std::max(grid_count_, 1), 0.f);
   for (int i = 0; i < grid_count_; ++i)
-    std::copy(fields.grids[i].nodes.begin(), fields.grids[i].nodes.end(),
+    std::copy(grids[i]->nodes.begin(), grids[i]->nodes.end(),
               nodes.begin() + per_field * i);
   const std::string what = "ClFieldEvaluation: grids of " +
                            std::to_string(grid_count_) + " fields at " +

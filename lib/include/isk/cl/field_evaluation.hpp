@@ -94,6 +94,24 @@ class ClFieldEvaluation {
                     const Composition* composition = nullptr,
                     int instances = 1);
 
+  // One character's fields (`fields`, its `composition`, may be null),
+  // `instances` times, posed by `joint_count` joints per instance.
+  struct FieldGroup {
+    const FieldGridSet* fields = nullptr;
+    int joint_count = 0;
+    const Composition* composition = nullptr;
+    int instances = 1;
+  };
+  // The fields of several characters (a crowd of different characters):
+  // group g's instances follow group g - 1's, fields and joints alike, and
+  // each group's grids and operator tables are stored once. The groups
+  // share one grid resolution and precision, and one operator table
+  // resolution (isk::Error kInvalidArgument naming the character
+  // otherwise). One group is the constructor above.
+  ClFieldEvaluation(std::shared_ptr<ClContext> context,
+                    const std::vector<FieldGroup>& groups,
+                    FieldStorage storage = FieldStorage::kAuto);
+
   // Host path: evaluates at `points` (#P by 3, model space, posed) for the
   // pose `skinning` (#joints skinning transforms). out_composed: #P by 4
   // (value, gradient); out_per_field, when given: (#P * #fields) by 4, row
@@ -177,8 +195,8 @@ class ClFieldEvaluation {
 
  private:
   void chooseStorage(FieldStorage requested, const FieldGridSet& fields);
-  void uploadImage(const FieldGridSet& fields);
-  void uploadBuffer(const FieldGridSet& fields);
+  void uploadImage(const std::vector<const FieldGrid*>& grids);
+  void uploadBuffer(const std::vector<const FieldGrid*>& grids);
   void uploadComposition(const Composition* composition);
   void ensureOutputs(int point_count, bool per_field);
 
