@@ -40,7 +40,9 @@
 // per instance, the same fields), the two frames in turn: counters crowd_ms
 // and separate_ms (wall time of the whole crowd's frame with its read-backs,
 // means over the iterations) and separate_over_crowd, their ratio (above 1:
-// the crowd pays).
+// the crowd pays). Crowd/mixed/x<n>:<d>: n instances of each of those
+// models (the assets present and the built-in arm) in one crowd of
+// characters of different sizes, against one ImplicitSkinner per instance.
 //
 //   isk_bench --benchmark_filter='^Implicit/'
 //   isk_bench --benchmark_filter='^Levers/'
@@ -383,22 +385,39 @@ void implicitReference(benchmark::State& state, const Case& c) {
   state.SetLabel("CPU reference, 1 thread");
 }
 
-// Crowd/<model>/x<n>:<d> (see the top of this file).
-void crowdAgainstSeparate(benchmark::State& state, const Case& c, int device,
+// Crowd/<model>/x<n>:<d> and Crowd/mixed/x<n>:<d> (see the top of this
+// file): `instances` instances of each case's character.
+void crowdAgainstSeparate(benchmark::State& state,
+                          const std::vector<Case>& cases, int device,
                           int instances) {
-  const Rig& rig = c.rig();
-  const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
-  ImplicitCrowd crowd(context(device), rig, fields, instances);
+  std::vector<CrowdCharacter> characters;
   std::vector<ImplicitSkinner> separate;
-  for (int i = 0; i < instances; ++i)
-    separate.emplace_back(context(device), rig, fields);
-  // Instance i at its own place: 2 diagonals apart on a square grid.
-  const int side = static_cast<int>(std::ceil(std::sqrt(instances)));
-  const float apart = 2.f * boundingBoxDiagonal(rig.mesh.positions);
+  std::vector<int> case_of;  // per instance
+  float apart = 0;
+  double vertices = 0, joints = 0;
+  for (size_t k = 0; k < cases.size(); ++k) {
+    const Rig& rig = cases[k].rig();
+    const std::shared_ptr<const ImplicitFields> fields =
+        implicitFieldsOf(cases[k]);
+    characters.push_back({&rig, fields, instances});
+    for (int i = 0; i < instances; ++i) {
+      separate.emplace_back(context(device), rig, fields);
+      case_of.push_back(static_cast<int>(k));
+    }
+    // Instances 2 of the largest diagonals apart.
+    apart = std::max(apart, 2.f * boundingBoxDiagonal(rig.mesh.positions));
+    vertices += static_cast<double>(rig.mesh.vertexCount()) * instances;
+    joints += rig.skeleton.skinJointCount();
+  }
+  ImplicitCrowd crowd(context(device), characters);
+  const int total = static_cast<int>(case_of.size());
+  // Instance i at its own place on a square grid.
+  const int side = static_cast<int>(std::ceil(std::sqrt(total)));
   auto poses = [&](int64_t frame) {
     std::vector<TransformList> out;
-    for (int i = 0; i < instances; ++i) {
-      TransformList pose = c.pose(rig, frame * instances + i);
+    for (int i = 0; i < total; ++i) {
+      const Case& c = cases[case_of[i]];
+      TransformList pose = c.pose(c.rig(), frame * total + i);
       const Eigen::Vector3f at(apart * (i % side), 0.f, apart * (i / side));
       for (Eigen::Affine3f& t : pose) t.pretranslate(at);
       out.push_back(std::move(pose));
@@ -414,7 +433,7 @@ void crowdAgainstSeparate(benchmark::State& state, const Case& c, int device,
     benchmark::DoNotOptimize(normals.data());
   };
   auto separate_frame = [&](const std::vector<TransformList>& p) {
-    for (int i = 0; i < instances; ++i) {
+    for (int i = 0; i < total; ++i) {
       separate[i].run(p[i]);
       separate[i].readPositions(positions);
       separate[i].readNormals(normals);
@@ -442,10 +461,10 @@ void crowdAgainstSeparate(benchmark::State& state, const Case& c, int device,
     ++frame;
   }
   const double n = static_cast<double>(std::max<int64_t>(frame, 1));
-  state.counters["vertices"] =
-      static_cast<double>(rig.mesh.vertexCount()) * instances;
-  state.counters["joints"] = rig.skeleton.skinJointCount();
-  state.counters["instances"] = instances;
+  state.counters["vertices"] = vertices;
+  state.counters["joints"] = joints;  // of one instance of each character
+  state.counters["instances"] = total;
+  state.counters["characters"] = static_cast<double>(cases.size());
   state.counters["crowd_ms"] = crowd_ms / n;
   state.counters["separate_ms"] = separate_ms / n;
   state.counters["separate_over_crowd"] =
@@ -511,19 +530,34 @@ void registerImplicitBenchmarks() {
   }
   // Crowds of the models up to the 7.8k-vertex human: where a frame is a
   // few milliseconds, launches and waits are a large part of it.
+  std::vector<Case> crowd_models;
   for (const Model& model : models()) {
     if (!available(model) || model.subdivision_levels > 0) continue;
+    crowd_models.push_back(modelCase(model));
     for (const ClDeviceInfo& device : devices())
       for (const int instances : {4, 16})
         registerGuarded(
             ("Crowd/" + model.name + "/" +
              onDevice("x" + std::to_string(instances), device.index))
                 .c_str(),
-            crowdAgainstSeparate, modelCase(model), device.index, instances)
+            crowdAgainstSeparate, std::vector<Case>{modelCase(model)},
+            device.index, instances)
             ->Unit(benchmark::kMillisecond)
             ->UseRealTime()
             ->MinTime(kScalingMinTimeS);
   }
+  // Every one of those models in one crowd: characters of different sizes.
+  if (crowd_models.size() > 1)
+    for (const ClDeviceInfo& device : devices())
+      for (const int instances : {1, 4})
+        registerGuarded(
+            ("Crowd/mixed/" +
+             onDevice("x" + std::to_string(instances), device.index))
+                .c_str(),
+            crowdAgainstSeparate, crowd_models, device.index, instances)
+            ->Unit(benchmark::kMillisecond)
+            ->UseRealTime()
+            ->MinTime(kScalingMinTimeS);
   constexpr int kFixedBones = 4, kFixedVertices = 40000;
   const std::pair<int, const char*> sizes[] = {
       {2500, "2.5k"}, {10000, "10k"}, {40000, "40k"}, {160000, "160k"}};

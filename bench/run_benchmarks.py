@@ -703,10 +703,12 @@ def crowd_section(results):
               "(every stage of the frame one launch over the vertices of "
               "all instances, one read-back) and by n `ImplicitSkinner`s "
               "(one per instance, the same fields), the two frames of the "
-              "same poses in turn. The frames are the same vertex for "
-              "vertex (tests check it). ms/frame is the wall time of the "
-              "whole crowd's frame with its read-backs; 'separate / crowd' "
-              "above 1 means the crowd pays.", ""]
+              "same poses in turn. 'mixed' is one crowd of every model "
+              "above, characters of different sizes, 1 or 4 instances of "
+              "each (`Crowd/mixed/x<n>`). The frames are the same vertex "
+              "for vertex (tests check it). ms/frame is the wall time of "
+              "the whole crowd's frame with its read-backs; 'separate / "
+              "crowd' above 1 means the crowd pays.", ""]
     models, devices = by_model_and_device(runs)
     for d in devices:
         rows = []
@@ -718,9 +720,15 @@ def crowd_section(results):
                 and re.fullmatch(r"x\d+", split_device(b)[0]))
             for n, run in sizes:
                 crowd_ms = run.get("crowd_ms")
-                rows.append([model, str(n), count(run.get("vertices")),
+                # Crowd/mixed/x<n>: n instances of each character.
+                instances = int(run.get("instances") or n)
+                characters = int(run.get("characters") or 1)
+                label = (f"{model} ({characters} characters)"
+                         if characters > 1 else model)
+                rows.append([label, str(instances),
+                             count(run.get("vertices")),
                              ms(crowd_ms),
-                             ms(crowd_ms / n if crowd_ms else None),
+                             ms(crowd_ms / instances if crowd_ms else None),
                              ms(run.get("separate_ms")),
                              ratio(run.get("separate_over_crowd"))])
         if rows:

@@ -72,6 +72,10 @@ class Render(unittest.TestCase):
             run("Crowd/CesiumMan/x4:0/min_time:1.000", 20.0,
                 vertices=10448, instances=4, crowd_ms=8.0,
                 separate_ms=10.0, separate_over_crowd=1.25),
+            # 4 of each of 7 characters: 28 instances.
+            run("Crowd/mixed/x4:0/min_time:1.000", 120.0,
+                vertices=97620, instances=28, characters=7, crowd_ms=56.0,
+                separate_ms=70.0, separate_over_crowd=1.25),
         ])
         text = run_benchmarks.render(data, "cmd")
         self.assertIn("## Crowds: several characters per launch", text)
@@ -80,6 +84,10 @@ class Render(unittest.TestCase):
             "| CesiumMan | 4 | 10,448 | 8.000 | 2.000 | 10.00 | 1.25x |",
             "| CesiumMan | 16 | 41,792 | 32.00 | 2.000 | 48.00 | 1.50x |"],
             text)
+        rows = [l for l in text.splitlines() if l.startswith("| mixed")]
+        self.assertEqual(rows, [
+            "| mixed (7 characters) | 28 | 97,620 | 56.00 | 2.000 | 70.00 "
+            "| 1.25x |"], text)
         # A recorded run shows its crowds too.
         recorded = run_benchmarks.render(document([]), "cmd",
                                          recorded=[("gpu.json", data)])
