@@ -460,6 +460,9 @@ TEST(ImplicitCrowd, ConcatenatedTrackingMeshKeepsEachCharactersLengths) {
   EXPECT_TRUE(concatenateTrackingMeshes({{&a, 2, arm_joints}, {&a, 1, 3}})
                   .vertex_diagonals.empty());
   EXPECT_THROW(concatenateTrackingMeshes({}), Error);
+  TrackingMesh wrong = a;
+  wrong.vertex_diagonals.assign(3, 1.f);
+  EXPECT_THROW(concatenateTrackingMeshes({{&wrong, 1, 3}}), Error);
   EXPECT_THROW(concatenateTrackingMeshes({{&a, 1, 3}, {nullptr, 1, 3}}), Error);
 }
 

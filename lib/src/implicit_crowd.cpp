@@ -89,6 +89,7 @@ SkinWeights concatenatedWeights(const std::vector<Copies>& parts) {
 
 TrackingMesh concatenateTrackingMeshes(
     const std::vector<TrackingMeshCopies>& parts) {
+  if (parts.empty()) invalid("concatenateTrackingMeshes: no parts");
   long long vertices = 0, fields = 0, ring_entries = 0, adjacency = 0,
             triangles = 0;
   bool one_diagonal = true;
@@ -103,6 +104,11 @@ TrackingMesh concatenateTrackingMeshes(
     if (c.joints_per_copy < 0)
       invalid(where + std::to_string(c.joints_per_copy) + " joints per copy");
     const TrackingMesh& m = *c.mesh;
+    if (!m.vertex_diagonals.empty() &&
+        static_cast<int>(m.vertex_diagonals.size()) != m.vertexCount())
+      invalid(where + std::to_string(m.vertex_diagonals.size()) +
+              " vertex diagonals for " + std::to_string(m.vertexCount()) +
+              " vertices");
     vertices += static_cast<long long>(m.vertexCount()) * c.copies;
     fields += static_cast<long long>(m.field_count) * c.copies;
     ring_entries +=
@@ -113,7 +119,6 @@ TrackingMesh concatenateTrackingMeshes(
     one_diagonal = one_diagonal && m.vertex_diagonals.empty() &&
                    m.diagonal == parts[0].mesh->diagonal;
   }
-  if (parts.empty()) invalid("concatenateTrackingMeshes: no parts");
   const long long kMax = std::numeric_limits<int>::max();
   for (const auto& [count, what] :
        {std::pair{vertices, "vertices"}, std::pair{fields, "fields"},

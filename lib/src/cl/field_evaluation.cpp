@@ -278,7 +278,6 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
   pair_count_ = static_cast<int>(composition_layout_.blended_pairs.size());
   table_count_ = static_cast<int>(merged.tables.size());
   table_resolution_ = table_count_ > 0 ? table_resolution : 2;
-  merged.table_resolution = table_resolution_;
 
   chooseStorage(storage, *first);
   half_ = first->precision == GridPrecision::kHalf &&
