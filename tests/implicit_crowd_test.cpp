@@ -382,16 +382,21 @@ TEST(ImplicitCrowd, CharactersOfDifferentSizesApartMatchTheirOwnSkinners) {
   const auto finger_bulge = fieldsWith(finger, CompositionOperator::kBulge);
   ASSERT_FALSE(arm_blend->composition.tables.empty());
   ASSERT_FALSE(finger_bulge->composition.tables.empty());
+  const auto small_blend = fieldsWith(small.rig, CompositionOperator::kBlend);
+  ASSERT_EQ(small_blend->composition.tables, arm_blend->composition.tables);
   for (const FieldStorage storage :
        {FieldStorage::kImage, FieldStorage::kBuffer}) {
     SCOPED_TRACE(fieldStorageName(storage));
     ImplicitSkinnerOptions options;
     options.storage = storage;
+    // The small cylinder's blend pairs use the arm's blend table, stored
+    // once.
     checkCharactersApart({{&arm, sharedFields("arm"), 2},
                           {&small.rig, small.fields, 3},
                           {&finger, finger_bulge, 1},
                           {&arm, arm_blend, 2},
-                          {&cylinder, sharedFields("cylinder"), 1}},
+                          {&cylinder, sharedFields("cylinder"), 1},
+                          {&small.rig, small_blend, 2}},
                          options);
   }
   // One small character among large ones, and the other way round.
@@ -491,6 +496,16 @@ TEST(ImplicitCrowd, FieldGroupsEvaluateAsEachCharacterAlone) {
   EXPECT_EQ(groups.tableCount(),
             static_cast<int>(arm_blend->composition.tables.size() +
                              small_bulge->composition.tables.size()));
+  // Characters with the same operator share its table.
+  const auto small_blend = fieldsWith(small.rig, CompositionOperator::kBlend);
+  ClFieldEvaluation shared(
+      context,
+      {{&arm_blend->grids, ja, &arm_blend->composition, 1},
+       {&small_blend->grids, jb, &small_blend->composition, 2}},
+      FieldStorage::kAuto);
+  EXPECT_EQ(shared.tableCount(),
+            static_cast<int>(arm_blend->composition.tables.size()));
+  EXPECT_EQ(shared.operatorBytes(), alone.operatorBytes());
   const Eigen::Vector3f offset(50.f, 0.f, 0.f);
   const TransformList pose = placed(test::clipPoses(small.rig, 3)[2], offset);
   TransformList all = test::clipPoses(arm, 2)[1];

@@ -232,12 +232,19 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
     const int grid_offset = static_cast<int>(stored.size());
     for (const FieldGrid& g : fields.grids) stored.push_back(&g);
     const Composition* composition = group.composition;
-    const int table_offset = static_cast<int>(merged.tables.size());
     const int controller_offset = static_cast<int>(merged.controllers.size());
+    // The group's table t is merged table table_index[t]: a table shared by
+    // several characters (sharedOperatorTable bakes each kind once) is
+    // stored once.
+    std::vector<int> table_index;
     if (composition) {
       any_composition = true;
-      merged.tables.insert(merged.tables.end(), composition->tables.begin(),
-                           composition->tables.end());
+      for (const auto& table : composition->tables) {
+        const auto same =
+            std::find(merged.tables.begin(), merged.tables.end(), table);
+        table_index.push_back(static_cast<int>(same - merged.tables.begin()));
+        if (same == merged.tables.end()) merged.tables.push_back(table);
+      }
       merged.controllers.insert(merged.controllers.end(),
                                 composition->controllers.begin(),
                                 composition->controllers.end());
@@ -264,7 +271,7 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
           p.joint += joint_offset;
           p.field_a += field_offset;
           p.field_b += field_offset;
-          if (p.table >= 0) p.table += table_offset;
+          if (p.table >= 0) p.table = table_index[p.table];
           if (p.controller >= 0) p.controller += controller_offset;
           composition_layout_.pairs.push_back(p);
         }

@@ -103,8 +103,10 @@ class ClFieldEvaluation {
     int instances = 1;
   };
   // The fields of several characters (a crowd of different characters):
-  // group g's instances follow group g - 1's, fields and joints alike, and
-  // each group's grids and operator tables are stored once. The groups
+  // group g's instances follow group g - 1's, fields and joints alike; each
+  // group's grids are stored once, and each operator table once (groups
+  // whose compositions hold the same table, as sharedOperatorTable makes
+  // them, share it). The groups
   // share one grid resolution and precision, and one operator table
   // resolution (isk::Error kInvalidArgument naming the character
   // otherwise). One group is the constructor above.
