@@ -330,9 +330,9 @@ __kernel void track_beta_init(const uint vertex_count,
 
 // One diffusion of (beta, gamma) over the one-ring (the neighbours within
 // the vertex's smoothing radius, radii[v], rest distance), beta_in ->
-// beta_out, of the channels whose `channels` entry is 1: sources stay at 1, the others
-// take the mean of themselves and their neighbours (duplicates, with no
-// ring, keep theirs).
+// beta_out, of the channels whose `channels` entry is 1: sources stay at
+// 1, the others take the mean of themselves and their neighbours
+// (duplicates, with no ring, keep theirs).
 __kernel void track_beta_diffuse(const uint vertex_count,
                                  __global const uchar* states,
                                  __global const uint* ring_offsets,
