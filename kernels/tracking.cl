@@ -30,17 +30,24 @@
 #define RULE_FIXED 3
 #define RING_CLOSED 0
 #define MAX_PARTNERS 8
+// Cells per axis of each home field's box in the cell lists (the host
+// passes its choice for the device: 1, the whole box, or more).
+#ifndef ISK_NEIGHBOUR_CELLS
+#define ISK_NEIGHBOUR_CELLS 4
+#endif
 
 // The contact by home field's data and the tracking broad phase (eight
 // consecutive kernel arguments, bound by ClSurfaceTracking::setContactArgs):
 // each vertex's home field (-1: none) and rest margin; each field's partners
 // at this pose (activePartners: blend pairs turned by less than 90 degrees;
 // MAX_PARTNERS per field, -1 padded); the pose's field neighbourhoods
-// (fieldNeighbourhoods: per home field h, in
-// neighbour_entries[neighbour_offsets[h] .. neighbour_offsets[h + 1]] the
-// fields whose posed support box meets h's, ascending, NEIGHBOUR_PARTNER set
-// on h and its partners; in neighbour_pairs[...pair_offsets[h]...] the pairs
-// both of whose fields are listed); contact_params: x 1 when the contact by
+// (fieldNeighbourhoods, split into cells by splitNeighbourhoodsIntoCells:
+// per home field h and cell c of its box, in
+// neighbour_entries[neighbour_offsets[h * ISK_NEIGHBOUR_CELLS^3 + c] ..
+// neighbour_offsets[... + 1]] the fields whose posed support box meets h's
+// and that can be non-zero in the cell, ascending, NEIGHBOUR_PARTNER set
+// on h and its partners; in neighbour_pairs[...pair_offsets[h]...] the
+// pairs both of whose fields are in h's neighbourhood); contact_params: x 1 when the contact by
 // home field is on (0: the paper's march only), y its gap in field units,
 // z 1 when the neighbourhoods are used (0: every field is sampled), w 1
 // when the projection skips fields by their value bounds (sample_tracking).
@@ -61,7 +68,8 @@
 // partners), as homeSamples does on the CPU. `home` is the vertex's home
 // field (-1: none): while x lies in its support box only the fields of its
 // neighbourhood (boxes that meet it) can be non-zero, so only they are
-// sampled (same result, same order, as sampling every field).
+// sampled, and of those only the ones listed in the cell of h's box that
+// holds x (same result, same order, as sampling every field).
 //
 // With `bounded` (the value bounds of field_cells, isk::cellValueBounds),
 // a listed field whose cell bound lies below the larger of the home value
@@ -97,8 +105,14 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                               (uint)home, resolution, home_u)
             : (float4)(0.0f);
     const float other_limit = home_sample.x + other_slack;
-    const int end = neighbour_offsets[home + 1];
-    for (int n = neighbour_offsets[home]; n < end; ++n) {
+    const int cells = ISK_NEIGHBOUR_CELLS;
+    const int3 c = min(convert_int3_rtz(home_u * ((float)cells /
+                                                 (float)(resolution - 1))),
+                       (int3)(cells - 1));
+    const int cell =
+        home * cells * cells * cells + c.x + cells * (c.y + cells * c.z);
+    const int end = neighbour_offsets[cell + 1];
+    for (int n = neighbour_offsets[cell]; n < end; ++n) {
       const int entry = neighbour_entries[n];
       const uint i = (uint)(entry & NEIGHBOUR_FIELD);
       if (!inside_sphere(field_params, i, x)) continue;

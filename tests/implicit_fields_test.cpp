@@ -269,7 +269,8 @@ TEST(ImplicitFields, BakedGridMatchesTheAnalyticFieldOnAssets) {
 // occupiedCells: a cell's bit is set exactly when one of its 8 nodes is not
 // all zero, and every sample in a clear cell is exactly zero (what lets the
 // kernels skip its loads). Some cells of every rig are clear (there is
-// something to skip), and the first wrong cell is named.
+// something to skip), and the first wrong cell is named. occupiedBox is the
+// box of the set cells, and every sample outside it is zero.
 void checkOccupiedCells(const std::string& name) {
   const ImplicitFields& fields = implicitFieldsOf(name);
   std::mt19937 random(11);
@@ -281,6 +282,7 @@ void checkOccupiedCells(const std::string& name) {
     const std::vector<uint32_t> bits = occupiedCells(grid);
     ASSERT_EQ(bits.size(),
               (static_cast<size_t>(cells) * cells * cells + 31) / 32);
+    Eigen::AlignedBox3i set_cells;
     auto nodeIsZero = [&](int i, int j, int k) {
       const float* node = &grid.nodes[4 * (i + n * (j + n * k))];
       return node[0] == 0 && node[1] == 0 && node[2] == 0 && node[3] == 0;
@@ -296,6 +298,7 @@ void checkOccupiedCells(const std::string& name) {
           const bool set = bits[cell / 32] >> (cell % 32) & 1u;
           ASSERT_EQ(set, any) << "cell (" << i << ", " << j << ", " << k << ")";
           ++total;
+          if (set) set_cells.extend(Eigen::Vector3i(i, j, k));
           if (set) continue;
           ++clear;
           const Eigen::Vector3f u(i + unit(random), j + unit(random),
@@ -305,6 +308,28 @@ void checkOccupiedCells(const std::string& name) {
           ASSERT_EQ(grid.sampleLocal(local), Eigen::Vector4f::Zero())
               << "in clear cell (" << i << ", " << j << ", " << k << ")";
         }
+    const Eigen::AlignedBox3f box = occupiedBox(grid);
+    ASSERT_EQ(box.isEmpty(), set_cells.isEmpty());
+    if (box.isEmpty()) continue;
+    const float tolerance = 1e-5f * (grid.box_max - grid.box_min).norm();
+    const Eigen::Vector3f low =
+        grid.box_min +
+        grid.spacing().cwiseProduct(set_cells.min().cast<float>());
+    const Eigen::Vector3f high =
+        grid.box_min +
+        grid.spacing().cwiseProduct(
+            (set_cells.max() + Eigen::Vector3i::Ones()).cast<float>());
+    EXPECT_LT((box.min() - low).norm(), tolerance);
+    EXPECT_LT((box.max() - high).norm(), tolerance);
+    for (int s = 0; s < 500; ++s) {
+      const Eigen::Vector3f local =
+          grid.box_min +
+          Eigen::Vector3f(unit(random), unit(random), unit(random))
+              .cwiseProduct(grid.box_max - grid.box_min);
+      if (box.contains(local)) continue;
+      ASSERT_EQ(grid.sampleLocal(local), Eigen::Vector4f::Zero())
+          << "outside the occupied box, sample " << s;
+    }
   }
   EXPECT_GT(clear, 0u) << "of " << total << " cells";
 }

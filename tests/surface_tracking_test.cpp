@@ -473,6 +473,103 @@ TEST(FieldNeighbourhoods, PosedBoxesMeetBySeparatingAxes) {
   EXPECT_TRUE(posedBoxesMeet(unit, identity, unit, moved({1.5f, 0.5f, 0}, 45)));
 }
 
+// The neighbourhoods split into cells (splitNeighbourhoodsIntoCells, as the
+// OpenCL projection on a CPU device uses them): at points of each home
+// field's box, the list of the cell that holds the point (found from its
+// node coordinates, as the kernel finds it) holds every field non-zero
+// there, in the order and with the flags of the whole list, and sampling
+// it gives the composed field bit for bit. With pruning expected, the
+// cells list fewer fields than the whole boxes.
+void checkNeighbourhoodCells(const ImplicitFields& fields,
+                             const TransformList& pose,
+                             const FieldNeighbourhoods& whole,
+                             bool expect_pruning) {
+  const int field_count = fields.grids.fieldCount();
+  const std::vector<Eigen::Affine3f> to_bone =
+      fieldTransforms(fields.grids, pose);
+  std::vector<Eigen::AlignedBox3f> occupied;
+  for (const FieldGrid& g : fields.grids.grids)
+    occupied.push_back(occupiedBox(g));
+  const ComposedFieldSampler sampler(fields.grids, pose, &fields.composition);
+  std::vector<Eigen::Vector4f> all(field_count), subset(field_count);
+  const float last = static_cast<float>(fields.grids.resolution - 1);
+  for (const int per_axis : {1, 4, 7}) {
+    SCOPED_TRACE(std::to_string(per_axis) + " cells per axis");
+    FieldNeighbourhoods nb = whole;
+    splitNeighbourhoodsIntoCells(nb, fields.grids, to_bone, occupied, per_axis);
+    const int cells = per_axis * per_axis * per_axis;
+    ASSERT_EQ(nb.cells_per_axis, per_axis);
+    ASSERT_EQ(nb.cell_offsets.size(),
+              static_cast<size_t>(field_count * cells) + 1);
+    for (int c = 0; c < field_count * cells; ++c) {  // ordered sub-lists
+      const int h = c / cells;
+      int n = nb.offsets[h];
+      for (int k = nb.cell_offsets[c]; k < nb.cell_offsets[c + 1]; ++k) {
+        while (n < nb.offsets[h + 1] && nb.entries[n] != nb.cell_entries[k])
+          ++n;
+        ASSERT_LT(n, nb.offsets[h + 1])
+            << "cell " << c % cells << " of field " << h << ": entry " << k
+            << " is not in the field's list, or out of its order";
+      }
+    }
+    std::mt19937 random(11);
+    std::uniform_real_distribution<float> unit(0.f, 1.f);
+    double listed_whole = 0, listed_cells = 0;
+    for (int h = 0; h < field_count; ++h) {
+      const FieldGrid& grid = fields.grids.grids[h];
+      const Eigen::Affine3f to_model = to_bone[h].inverse(Eigen::Affine);
+      const Eigen::Vector3f inverse_spacing = grid.spacing().cwiseInverse();
+      for (int s = 0; s < 400; ++s) {
+        const Eigen::Vector3f t(unit(random), unit(random), unit(random));
+        const Eigen::Vector3f x =
+            to_model *
+            (grid.box_min + t.cwiseProduct(grid.box_max - grid.box_min)).eval();
+        const Eigen::Vector3f u =
+            (to_bone[h] * x - grid.box_min).cwiseProduct(inverse_spacing);
+        if (!(u.minCoeff() >= 0.f && u.maxCoeff() <= last)) continue;
+        int cell[3];
+        for (int a = 0; a < 3; ++a)
+          cell[a] = std::min(static_cast<int>(u[a] * (per_axis / last)),
+                             per_axis - 1);
+        const int c =
+            h * cells + cell[0] + per_axis * (cell[1] + per_axis * cell[2]);
+        const int* list = nb.cell_entries.data() + nb.cell_offsets[c];
+        const int count = nb.cell_offsets[c + 1] - nb.cell_offsets[c];
+        listed_whole += nb.offsets[h + 1] - nb.offsets[h];
+        listed_cells += count;
+        const Eigen::Vector4f composed = sampler.sample(x, all.data());
+        std::vector<char> listed(field_count, 0);
+        for (int n = 0; n < count; ++n)
+          listed[list[n] & FieldNeighbourhoods::kFieldMask] = 1;
+        for (int i = 0; i < field_count; ++i)
+          ASSERT_TRUE(listed[i] || all[i][0] == 0.f)
+              << "field " << i << " is " << all[i][0] << " at a point of "
+              << "cell " << c - h * cells << " of field " << h
+              << "'s box but not in the cell's list";
+        ASSERT_EQ(composed, sampler.sampleSubset(
+                                x, list, count, FieldNeighbourhoods::kFieldMask,
+                                subset.data()))
+            << "home field " << h << " sample " << s;
+      }
+    }
+    if (expect_pruning && per_axis > 1) {
+      EXPECT_LT(listed_cells, 0.9 * listed_whole)
+          << "the cells prune almost nothing";
+    }
+  }
+  FieldNeighbourhoods nb = whole;
+  EXPECT_THROW(
+      splitNeighbourhoodsIntoCells(nb, fields.grids, to_bone, occupied, 0),
+      Error);
+  EXPECT_THROW(
+      splitNeighbourhoodsIntoCells(nb, fields.grids, to_bone, occupied, 17),
+      Error);
+  occupied.pop_back();
+  EXPECT_THROW(
+      splitNeighbourhoodsIntoCells(nb, fields.grids, to_bone, occupied, 4),
+      Error);
+}
+
 // Every field that is non-zero at a point of a home field's box is listed
 // in that home field's neighbourhood, lists are ascending and tagged with
 // the pose's partners, and sampling the list gives the composed field of
@@ -531,6 +628,7 @@ void checkNeighbourhoods(const Rig& rig, const ImplicitFields& fields,
     EXPECT_LT(nb.meanListed(), 0.8 * field_count)
         << "the neighbourhoods prune almost nothing";
   }
+  checkNeighbourhoodCells(fields, pose, nb, expect_pruning);
 }
 
 TEST(FieldNeighbourhoods, ListEveryFieldOfTheHomeBoxOnProceduralRigs) {

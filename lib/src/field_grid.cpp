@@ -46,6 +46,27 @@ std::vector<uint32_t> occupiedCells(const FieldGrid& grid) {
   return bits;
 }
 
+Eigen::AlignedBox3f occupiedBox(const FieldGrid& grid) {
+  const int cells = std::max(grid.resolution, 2) - 1;
+  const std::vector<uint32_t> occupied = occupiedCells(grid);
+  Eigen::AlignedBox3i set;  // cell indices
+  for (int k = 0; k < cells; ++k)
+    for (int j = 0; j < cells; ++j)
+      for (int i = 0; i < cells; ++i) {
+        const size_t cell = static_cast<size_t>(i + cells * (j + cells * k));
+        if ((occupied[cell / 32] >> (cell % 32)) & 1u)
+          set.extend(Eigen::Vector3i(i, j, k));
+      }
+  Eigen::AlignedBox3f box;  // empty
+  if (set.isEmpty()) return box;
+  const Eigen::Vector3f spacing = grid.spacing();
+  box.extend(grid.box_min + spacing.cwiseProduct(set.min().cast<float>()));
+  box.extend(grid.box_min +
+             spacing.cwiseProduct(
+                 (set.max() + Eigen::Vector3i::Ones()).cast<float>()));
+  return box;
+}
+
 std::vector<uint8_t> cellValueBounds(const FieldGrid& grid) {
   const size_t n = static_cast<size_t>(std::max(grid.resolution, 2));
   const size_t cells = n - 1;

@@ -1,6 +1,7 @@
 #include "isk/surface_tracking.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -435,6 +436,100 @@ FieldNeighbourhoods fieldNeighbourhoods(
     out.pair_offsets.push_back(static_cast<int>(out.pairs.size()));
   }
   return out;
+}
+
+void splitNeighbourhoodsIntoCells(
+    FieldNeighbourhoods& neighbourhoods, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<Eigen::AlignedBox3f>& occupied_boxes,
+    int cells_per_axis) {
+  if (cells_per_axis < 1 || cells_per_axis > 16)
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "splitNeighbourhoodsIntoCells: " + std::to_string(cells_per_axis) +
+            " cells per axis, expected 1 to 16");
+  const int per_axis = cells_per_axis;
+  const int cell_count = per_axis * per_axis * per_axis;
+  const int field_count =
+      static_cast<int>(std::max<size_t>(neighbourhoods.offsets.size(), 1)) - 1;
+  if (grids.fieldCount() != field_count ||
+      static_cast<int>(to_bone.size()) != field_count ||
+      static_cast<int>(occupied_boxes.size()) != field_count)
+    throw Error(ErrorCode::kInvalidArgument,
+                "splitNeighbourhoodsIntoCells: neighbourhoods of " +
+                    std::to_string(field_count) + " fields, " +
+                    std::to_string(grids.fieldCount()) + " grids, " +
+                    std::to_string(to_bone.size()) + " transforms, " +
+                    std::to_string(occupied_boxes.size()) + " occupied boxes");
+  // Each occupied box's corners in model space, grown by 1e-3 of its grid's
+  // support box per side.
+  std::vector<std::array<Eigen::Vector3f, 8>> corners(field_count);
+  for (int i = 0; i < field_count; ++i) {
+    const Eigen::AlignedBox3f& box = occupied_boxes[i];
+    if (box.isEmpty()) continue;
+    const FieldGrid& g = grids.grids[i];
+    const Eigen::Vector3f grow = 1e-3f * (g.box_max - g.box_min).cwiseAbs();
+    const Eigen::Vector3f lo = box.min() - grow, hi = box.max() + grow;
+    const Eigen::Affine3f to_model = to_bone[i].inverse();
+    for (int c = 0; c < 8; ++c)
+      corners[i][c] = to_model * Eigen::Vector3f(c & 1 ? hi.x() : lo.x(),
+                                                 c & 2 ? hi.y() : lo.y(),
+                                                 c & 4 ? hi.z() : lo.z());
+  }
+  neighbourhoods.cells_per_axis = cells_per_axis;
+  std::vector<int>& offsets = neighbourhoods.cell_offsets;
+  std::vector<int>& entries = neighbourhoods.cell_entries;
+  offsets.assign(1, 0);
+  entries.clear();
+  std::vector<std::vector<int>> cells(cell_count);
+  for (int h = 0; h < field_count; ++h) {
+    for (auto& cell : cells) cell.clear();
+    const FieldGrid& g = grids.grids[h];
+    const Eigen::Vector3f extent = g.box_max - g.box_min;
+    for (int n = neighbourhoods.offsets[h]; n < neighbourhoods.offsets[h + 1];
+         ++n) {
+      const int entry = neighbourhoods.entries[n];
+      const int i = entry & FieldNeighbourhoods::kFieldMask;
+      if (i >= field_count || occupied_boxes[i].isEmpty()) continue;  // 0
+      // The box in h's cell units (per_axis cells along each axis of h's box).
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(
+                          std::numeric_limits<float>::infinity()),
+                      hi = -lo;
+      for (const Eigen::Vector3f& corner : corners[i]) {
+        const Eigen::Vector3f q =
+            (to_bone[h] * corner - g.box_min).cwiseQuotient(extent) *
+            static_cast<float>(per_axis);
+        lo = lo.cwiseMin(q);
+        hi = hi.cwiseMax(q);
+      }
+      int first[3], last[3];
+      bool meets = true;
+      for (int a = 0; a < 3; ++a) {
+        if (!(std::isfinite(lo[a]) && std::isfinite(hi[a]))) {
+          first[a] = 0;  // no bound: every cell
+          last[a] = per_axis - 1;
+          continue;
+        }
+        // 1e-3 of h's box (per_axis cells) on either side.
+        const float margin = 1e-3f * static_cast<float>(per_axis);
+        const float from = std::floor(lo[a] - margin);
+        const float to = std::floor(hi[a] + margin);
+        if (to < 0.f || from > static_cast<float>(per_axis - 1)) meets = false;
+        first[a] = static_cast<int>(std::max(from, 0.f));
+        last[a] =
+            static_cast<int>(std::min(to, static_cast<float>(per_axis - 1)));
+      }
+      if (!meets) continue;
+      for (int z = first[2]; z <= last[2]; ++z)
+        for (int y = first[1]; y <= last[1]; ++y)
+          for (int x = first[0]; x <= last[0]; ++x)
+            cells[x + per_axis * (y + per_axis * z)].push_back(entry);
+    }
+    for (const auto& cell : cells) {
+      entries.insert(entries.end(), cell.begin(), cell.end());
+      offsets.push_back(static_cast<int>(entries.size()));
+    }
+  }
 }
 
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,

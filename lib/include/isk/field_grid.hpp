@@ -55,6 +55,11 @@ FieldGrid bakeField(const BoneField& field, int resolution = 32);
 // outside the field's compact support).
 std::vector<uint32_t> occupiedCells(const FieldGrid& grid);
 
+// The bone-frame box of the cells occupiedCells sets: every sample of
+// `grid` outside it is exactly 0 (the support's tight box, within the
+// support box). Empty (isEmpty()) when no cell is set.
+Eigen::AlignedBox3f occupiedBox(const FieldGrid& grid);
+
 // An upper bound of `grid`'s value in each cell, one byte per cell in
 // occupiedCells' order ((resolution - 1)^3 bytes): 0 when the cell's bit in
 // occupiedCells is clear (the samples there are zero), else b with every

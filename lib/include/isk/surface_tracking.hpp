@@ -232,6 +232,16 @@ struct FieldNeighbourhoods {
   std::vector<int> entries;       // field index, | kPartner
   std::vector<int> pair_offsets;  // #fields + 1, into pairs
   std::vector<int> pairs;         // indices of mesh.partner_pairs
+  // The finer broad phase of the OpenCL projection
+  // (splitNeighbourhoodsIntoCells): each field h's support box cut into
+  // K^3 equal cells (K = cells_per_axis), cell (i, j, k) at index
+  // h * K^3 + i + K * (j + K * k) (i along the box's x); in
+  // cell_entries[cell_offsets[c] .. cell_offsets[c + 1]] the entries of h's
+  // list (same order, same flags) whose field can be non-zero somewhere in
+  // cell c. Empty until split.
+  int cells_per_axis = 0;
+  std::vector<int> cell_offsets;  // #fields * K^3 + 1
+  std::vector<int> cell_entries;
   // Mean number of fields listed per field.
   double meanListed() const;
 };
@@ -241,6 +251,24 @@ FieldNeighbourhoods fieldNeighbourhoods(
     const TrackingMesh& mesh, const FieldGridSet& grids,
     const std::vector<Eigen::Affine3f>& to_bone,
     const std::vector<int>& partners);
+
+// Fills neighbourhoods' cell lists (see FieldNeighbourhoods), K =
+// cells_per_axis (1 to 16) cells per axis of each box: a cell lists
+// an entry when the field's occupied box (occupied_boxes, #fields, bone
+// frame: occupiedBox, outside which the field is 0), posed through to_bone
+// (#fields, as for fieldNeighbourhoods) and taken as an axis-aligned box
+// in h's bone frame, meets the cell; both are grown by 1e-3 of their size
+// so that rounding never drops a field. A point of h's box is then in
+// every non-zero field's list of the cell that holds it, the cell the
+// kernel finds from the point's node coordinates u in h's grid:
+// min(floor(u * K / (resolution - 1)), K - 1) per axis. A transform that is
+// not finite lists the field in every cell. Throws
+// isk::Error(kInvalidArgument) when the sizes do not match the
+// neighbourhoods' fields or K is out of range.
+void splitNeighbourhoodsIntoCells(
+    FieldNeighbourhoods& neighbourhoods, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<Eigen::AlignedBox3f>& occupied_boxes, int cells_per_axis);
 
 // Whether the posed support boxes of grids a and b (through their model ->
 // bone transforms) meet, by separating axes; each box is first grown by

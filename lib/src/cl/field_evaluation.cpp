@@ -300,6 +300,13 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
           "CL_RGBA / CL_HALF_FLOAT 3D images: no memory saved)";
   }
 
+  {
+    std::vector<Eigen::AlignedBox3f> stored_boxes;
+    for (const FieldGrid* g : stored) stored_boxes.push_back(occupiedBox(*g));
+    for (const int i : grid_of_field)
+      occupied_boxes_.push_back(stored_boxes[i]);
+  }
+
   // Static parameters; the rows of the transforms come with each pose.
   params_staging_.assign(
       static_cast<size_t>(std::max(field_count_, 1)) * kParamStride * 4, 0.f);

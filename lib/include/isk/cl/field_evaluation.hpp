@@ -169,6 +169,10 @@ class ClFieldEvaluation {
   const std::vector<Eigen::Affine3f>& posedToBone() const {
     return posed_to_bone_;
   }
+  // Each field's occupiedBox (bone frame; the layout has no nodes).
+  const std::vector<Eigen::AlignedBox3f>& occupiedBoxes() const {
+    return occupied_boxes_;
+  }
   int fieldCount() const { return field_count_; }
   // Grids stored on the device (fieldCount() / instances).
   int gridCount() const { return grid_count_; }
@@ -204,6 +208,7 @@ class ClFieldEvaluation {
 
   std::shared_ptr<ClContext> context_;
   FieldGridSet layout_;  // the grids without their nodes (joints, frames)
+  std::vector<Eigen::AlignedBox3f> occupied_boxes_;  // per field
   int field_count_ = 0;
   int grid_count_ = 0;  // stored grids: one instance's fields
   int resolution_ = 0;

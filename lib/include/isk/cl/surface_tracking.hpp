@@ -105,8 +105,13 @@ class ClSurfaceTracking {
   std::shared_ptr<ClContext> context_;
   SurfaceTrackingOptions options_;
   const TrackingMesh* mesh_;
-  std::vector<int> partners_staging_;   // activePartners of the last pose
-  FieldNeighbourhoods neighbourhoods_;  // of the last pose (staging)
+  std::vector<int> partners_staging_;    // activePartners of the last pose
+  FieldNeighbourhoods neighbourhoods_;   // of the last pose (staging)
+  size_t neighbour_entry_capacity_ = 0;  // ints in neighbour_entries_
+  // Cells per axis of the neighbourhoods' split: kCpuCellsPerAxis on a CPU
+  // device, 1 (no split) on others.
+  static constexpr int kCpuCellsPerAxis = 4;
+  int cells_per_axis_ = 1;
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
