@@ -165,8 +165,9 @@ class Results:
             for part in key:
                 m = re.fullmatch(r"(opencl|opencl-buffer|opencl-image|dqs|paired|"
                                  r"implicit|cold|warm|in-process|all|"
-                                 r"no-neighbourhoods|no-march-order|"
-                                 r"no-occupied-cells|no-value-bounds|x\d+):(\d+)",
+                                 r"no-neighbourhoods|no-neighbourhood-cells|"
+                                 r"no-march-order|no-occupied-cells|"
+                                 r"no-value-bounds|x\d+):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
                     self.devices[int(m.group(2))] = {
@@ -591,8 +592,9 @@ def implicit_section(results):
     return lines
 
 
-LEVERS = ("all", "no-neighbourhoods", "no-march-order", "no-occupied-cells",
-          "no-value-bounds", "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
+LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
+          "no-march-order", "no-occupied-cells", "no-value-bounds",
+          "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
 
 
 def moved(run):
@@ -627,7 +629,12 @@ def levers_section(results):
               "speed switches (`SurfaceTrackingOptions`) off: "
               "`field_neighbourhoods` (a vertex inside its home field's "
               "support box samples only the fields whose posed boxes meet "
-              "that box, instead of every field) and `march_order` (the "
+              "that box, instead of every field), `neighbourhood_cells` "
+              "(each home field's box cut into cells, a vertex sampling "
+              "only the fields that can be non-zero in its cell; "
+              "'no-neighbourhood-cells' sets 1, the whole box; the device's "
+              "choice is 4 per axis on a CPU device, 1 elsewhere), "
+              "`march_order` (the "
               "projection marches the vertices by home field and along a "
               "Morton curve of their rest positions, instead of by index) "
               "and `occupied_cells` (a field sample in a grid cell whose 8 "

@@ -52,6 +52,8 @@ class Render(unittest.TestCase):
                 projection_ms=13.0, vertices=7798),
             run("Levers/human-addon/no-occupied-cells:0/min_time:2.000", 12.5,
                 projection_ms=10.5, vertices=7798),
+            run("Levers/human-addon/no-neighbourhood-cells:0/min_time:2.000",
+                11.0, projection_ms=9.0, vertices=7798),
         ])
         text = run_benchmarks.render(data, "cmd")
         rows = [l for l in text.splitlines()
@@ -62,6 +64,10 @@ class Render(unittest.TestCase):
                 if l.startswith("| human-addon | no-occupied-cells")]
         self.assertEqual(len(rows), 1, text)
         self.assertTrue(rows[0].endswith("| 1.25x | n/a |"), rows[0])
+        rows = [l for l in text.splitlines()
+                if l.startswith("| human-addon | no-neighbourhood-cells")]
+        self.assertEqual(len(rows), 1, text)
+        self.assertTrue(rows[0].endswith("| 1.10x | n/a |"), rows[0])
         self.assertNotIn("nan", text.lower())
 
     def test_crowds_by_instance_count(self):

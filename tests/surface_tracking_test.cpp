@@ -143,6 +143,14 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
   o = {};
   o.smoothing_radius = 2;
   EXPECT_NE(o.validate().reason().find("smoothing_radius"), std::string::npos);
+  for (const int cells : {-1, 17}) {
+    o = {};
+    o.neighbourhood_cells = cells;
+    EXPECT_NE(o.validate().reason().find("neighbourhood_cells"),
+              std::string::npos);
+  }
+  o.neighbourhood_cells = 16;
+  EXPECT_TRUE(o.validate());
   // The paper's values are the defaults.
   o = {};
   EXPECT_FLOAT_EQ(o.sigma, 0.35f);
@@ -1139,10 +1147,12 @@ void checkSpeedSwitches(const Rig& rig,
                         const TransformList& pose) {
   struct Switches {
     bool neighbourhoods = true, march_order = true, cells = true, bounds = true;
+    int neighbourhood_cells = 0;  // the device's choice (PoCL: 4)
   };
   auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
     options.tracking.field_neighbourhoods = on.neighbourhoods;
+    options.tracking.neighbourhood_cells = on.neighbourhood_cells;
     options.tracking.march_order = on.march_order;
     options.tracking.occupied_cells = on.cells;
     options.tracking.value_bounds = on.bounds;
@@ -1158,12 +1168,16 @@ void checkSpeedSwitches(const Rig& rig,
   for (const Switches& on :
        {Switches{false, true, true, true}, Switches{true, false, true, true},
         Switches{true, true, false, true}, Switches{true, true, true, false},
-        Switches{false, false, false, false}}) {
+        Switches{false, false, false, false},
+        Switches{true, true, true, true, 1},
+        Switches{true, true, true, true, 7},
+        Switches{true, true, false, false, 1}}) {
     SCOPED_TRACE(std::string("neighbourhoods ") +
                  (on.neighbourhoods ? "on" : "off") + ", march order " +
                  (on.march_order ? "on" : "off") + ", occupied cells " +
                  (on.cells ? "on" : "off") + ", value bounds " +
-                 (on.bounds ? "on" : "off"));
+                 (on.bounds ? "on" : "off") + ", neighbourhood cells " +
+                 std::to_string(on.neighbourhood_cells));
     const auto other = frames(on);
     const test::RowMismatch cpu =
         test::largestRowDistance(other.first, all.first);

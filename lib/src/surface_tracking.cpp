@@ -65,6 +65,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (crease_steps < 0 || crease_steps > 1000)
     return bad("crease_steps " + std::to_string(crease_steps) +
                ": expected 0..1000");
+  if (neighbourhood_cells < 0 || neighbourhood_cells > 16)
+    return bad("neighbourhood_cells " + std::to_string(neighbourhood_cells) +
+               ": expected 0 (the device's choice) to 16");
   return Validation::ok();
 }
 

@@ -52,11 +52,20 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
                 "by TrackingMesh::build?)");
   const size_t n = static_cast<size_t>(std::max(vertex_count_, 1));
   // The neighbourhoods split into cells (splitNeighbourhoodsIntoCells) on a
-  // CPU device: about 10% off the projection on PoCL (README, Benchmarks).
-  // Elsewhere one cell per box, the whole neighbourhood: a GPU's frame is
-  // bound by launches, and the split's host time and upload are unmeasured
-  // there.
-  cells_per_axis_ = context_->info().is_cpu ? kCpuCellsPerAxis : 1;
+  // CPU device, for a character with 100 tracked vertices per field or
+  // more: 8-10% off the projection on PoCL, 4-6% off the frame (README,
+  // Benchmarks). The split's host time and upload grow with the fields,
+  // its gain with the vertices: below that (RobotExpressive, 50 per field)
+  // the frame took 1-6% longer. Elsewhere one cell per box, the whole
+  // neighbourhood: a GPU's frame is bound by launches, and the split's
+  // host time and upload are unmeasured there.
+  const bool many_vertices =
+      mesh.march_order.size() >=
+      100 * static_cast<size_t>(std::max(mesh.field_count, 1));
+  cells_per_axis_ =
+      options.neighbourhood_cells > 0            ? options.neighbourhood_cells
+      : context_->info().is_cpu && many_vertices ? kCpuCellsPerAxis
+                                                 : 1;
   try {
     cl::Program tracking = context_->program(
         "tracking", fields.buildOptions() + " -DISK_NEIGHBOUR_CELLS=" +
