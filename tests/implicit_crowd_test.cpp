@@ -269,21 +269,14 @@ TEST(ImplicitCrowd, OverlappingInstancesStopAtEachOther) {
 // A cylinder a quarter of the built-in one's size (radius 0.25, length 2,
 // 3 bones), with its fields: a character whose tracking lengths are a
 // quarter of the others'.
-struct SmallCylinder {
-  Rig rig;
-  std::shared_ptr<const ImplicitFields> fields;
-};
+using SmallCylinder = test::RigWithFields;
 const SmallCylinder& smallCylinder() {
   static const SmallCylinder small = [] {
     CylinderRigOptions options;
     options.bones = 3;
     options.radius = 0.25f;
     options.length = 2.f;
-    SmallCylinder c;
-    c.rig = makeCylinderRig(options);
-    c.fields = std::make_shared<const ImplicitFields>(
-        buildImplicitFields(c.rig, ImplicitFieldsOptions()));
-    return c;
+    return test::withDefaultFields(makeCylinderRig(options));
   }();
   return small;
 }

@@ -41,9 +41,7 @@ std::shared_ptr<const ImplicitFields> sharedFields(const std::string& name) {
 
 // The cylinder of the issue: 2 bones, radius 1, length 8, about 10k
 // vertices, union at the joint (the default), fields built once.
-struct BentCylinder {
-  Rig rig;
-  std::shared_ptr<const ImplicitFields> fields;
+struct BentCylinder : test::RigWithFields {
   int joint = -1;
 };
 const BentCylinder& bentCylinder() {
@@ -52,9 +50,8 @@ const BentCylinder& bentCylinder() {
     options.rings = 200;
     options.segments = 50;
     BentCylinder c;
-    c.rig = makeCylinderRig(options);
-    c.fields = std::make_shared<const ImplicitFields>(
-        buildImplicitFields(c.rig, ImplicitFieldsOptions()));
+    static_cast<test::RigWithFields&>(c) =
+        test::withDefaultFields(makeCylinderRig(options));
     c.joint = c.rig.skeleton.find("bone1");
     return c;
   }();
@@ -65,22 +62,17 @@ const BentCylinder& bentCylinder() {
 // every corner of every 5th triangle of the arm gets its own copy of the
 // vertex (same position, normal and weights), welded back by the one-rings
 // (duplicates: untracked, given their representative's position).
-struct SplitArm {
-  Rig rig;
-  std::shared_ptr<const ImplicitFields> fields;
-};
+using SplitArm = test::RigWithFields;
 const SplitArm& splitArm() {
   static const SplitArm split = [] {
-    SplitArm a;
-    a.rig = test::rigNamed("arm");
-    Mesh& mesh = a.rig.mesh;
+    Rig rig = test::rigNamed("arm");
+    Mesh& mesh = rig.mesh;
     const int n = mesh.vertexCount();
     std::vector<std::vector<std::pair<int, float>>> lists(n);
     for (int v = 0; v < n; ++v)
-      for (uint32_t i = a.rig.weights.offsets[v];
-           i < a.rig.weights.offsets[v + 1]; ++i)
-        lists[v].emplace_back(a.rig.weights.joints[i],
-                              a.rig.weights.weights[i]);
+      for (uint32_t i = rig.weights.offsets[v]; i < rig.weights.offsets[v + 1];
+           ++i)
+        lists[v].emplace_back(rig.weights.joints[i], rig.weights.weights[i]);
     std::vector<int> copies;  // original of each copy
     for (Eigen::Index t = 0; t < mesh.triangles.rows(); t += 5)
       for (int c = 0; c < 3; ++c) {
@@ -95,10 +87,8 @@ const SplitArm& splitArm() {
       lists.push_back(lists[copies[k]]);
     }
     mesh.parts.clear();
-    a.rig.weights = SkinWeights::fromLists(lists);
-    a.fields = std::make_shared<const ImplicitFields>(
-        buildImplicitFields(a.rig, ImplicitFieldsOptions()));
-    return a;
+    rig.weights = SkinWeights::fromLists(lists);
+    return test::withDefaultFields(std::move(rig));
   }();
   return split;
 }

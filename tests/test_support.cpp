@@ -15,6 +15,7 @@
 #include <mutex>
 #include <random>
 #include <sstream>
+#include <utility>
 
 #include "data_folder.hpp"
 #include "isk/animation.hpp"
@@ -66,6 +67,14 @@ const ImplicitFields& implicitFieldsOf(const std::string& name) {
   if (it == cache.end())
     it = cache.emplace(name, buildImplicitFields(rig)).first;
   return it->second;
+}
+
+RigWithFields withDefaultFields(Rig rig) {
+  RigWithFields out;
+  out.rig = std::move(rig);
+  out.fields = std::make_shared<const ImplicitFields>(
+      buildImplicitFields(out.rig, ImplicitFieldsOptions()));
+  return out;
 }
 
 bool haveAssets() { return samples::dataFolderPresent(); }

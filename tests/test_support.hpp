@@ -31,6 +31,14 @@ const Rig& rigNamed(const std::string& name);
 // The implicit fields of rigNamed(name), built with default options (cached).
 const ImplicitFields& implicitFieldsOf(const std::string& name);
 
+// A rig of a test's own with its fields (default options), for the
+// procedural characters a test file builds once and shares.
+struct RigWithFields {
+  Rig rig;
+  std::shared_ptr<const ImplicitFields> fields;
+};
+RigWithFields withDefaultFields(Rig rig);
+
 // True when the data folder exists. When it does not, asset tests call
 // GTEST_SKIP with a message naming the folder and what was skipped.
 bool haveAssets();
