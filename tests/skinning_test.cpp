@@ -342,6 +342,23 @@ TEST(VertexNormals, IsolatedAndDegenerateVerticesTakeTheFallback) {
   EXPECT_EQ(out.row(4), fallback.row(4));
 }
 
+// The corners the OpenCL normals kernel reads: each adjacency entry's
+// triangle, its corners in the triangle's order (the cross product's
+// sign), on a fan whose vertex 0 is in every triangle.
+TEST(VertexTriangleAdjacency, CornersAreEachEntrysTriangleInOrder) {
+  TriangleMatrix triangles(4, 3);
+  triangles << 0, 1, 2, 0, 2, 3, 3, 4, 0, 4, 1, 0;
+  const auto adjacency = VertexTriangleAdjacency::build(triangles, 6);
+  const std::vector<int32_t> corners = adjacency.corners(triangles);
+  ASSERT_EQ(corners.size(), 3 * adjacency.triangles.size());
+  ASSERT_EQ(adjacency.offsets[1] - adjacency.offsets[0], 4u);  // vertex 0
+  for (size_t i = 0; i < adjacency.triangles.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      ASSERT_EQ(corners[3 * i + k], triangles(adjacency.triangles[i], k))
+          << "entry " << i << ", corner " << k;
+  EXPECT_EQ(adjacency.offsets[6], adjacency.offsets[5]);  // vertex 5: none
+}
+
 // A triangle whose cross product passes FLT_MAX (a joint scaled by 1e20):
 // the sum is (0, 0, inf), which normalizes to NaN; both paths must take the
 // fallback instead. NVIDIA's OpenCL contracts the cross product into fused

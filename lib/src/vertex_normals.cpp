@@ -25,6 +25,15 @@ VertexTriangleAdjacency VertexTriangleAdjacency::build(
   return adjacency;
 }
 
+std::vector<int32_t> VertexTriangleAdjacency::corners(
+    const TriangleMatrix& triangles) const {
+  std::vector<int32_t> out;
+  out.reserve(3 * this->triangles.size());
+  for (const uint32_t t : this->triangles)
+    for (int k = 0; k < 3; ++k) out.push_back(triangles(t, k));
+  return out;
+}
+
 Validation VertexNormalsJob::validate() const {
   if (!positions || !triangles || !adjacency || !fallback_normals ||
       !out_normals) {

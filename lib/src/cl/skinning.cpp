@@ -57,16 +57,10 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
     influence_joints_ = uploadReadOnly(c, weights.joints, "influence joints");
     influence_weights_ =
         uploadReadOnly(c, weights.weights, "influence weights");
-    const int32_t* t = mesh.triangles.data();
-    triangles_ = uploadReadOnly(
-        c,
-        std::vector<int32_t>(t,
-                             t + 3 * static_cast<size_t>(mesh.triangleCount())),
-        "triangles");
     adjacency_offsets_ =
         uploadReadOnly(c, adjacency.offsets, "adjacency offsets");
-    adjacency_triangles_ =
-        uploadReadOnly(c, adjacency.triangles, "adjacency triangles");
+    adjacency_corners_ = uploadReadOnly(c, adjacency.corners(mesh.triangles),
+                                        "adjacency corners");
     // Large enough for either layout (LBS 12 floats per joint, DQS 8).
     joint_transforms_ = c.createBuffer(
         CL_MEM_READ_ONLY, 12 * sizeof(float) * std::max(joint_count, 1),
@@ -175,11 +169,10 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
     if (recompute_normals) {
       normals_kernel_.setArg(0, n);
       normals_kernel_.setArg(1, out_positions_);
-      normals_kernel_.setArg(2, triangles_);
-      normals_kernel_.setArg(3, adjacency_offsets_);
-      normals_kernel_.setArg(4, adjacency_triangles_);
-      normals_kernel_.setArg(5, skinned_normals_);
-      normals_kernel_.setArg(6, out_normals_);
+      normals_kernel_.setArg(2, adjacency_offsets_);
+      normals_kernel_.setArg(3, adjacency_corners_);
+      normals_kernel_.setArg(4, skinned_normals_);
+      normals_kernel_.setArg(5, out_normals_);
       start = std::chrono::steady_clock::now();
       queue.enqueueNDRangeKernel(normals_kernel_, cl::NullRange, global,
                                  cl::NullRange, nullptr, &normals);

@@ -174,13 +174,10 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       ring_weights_ = uploadReadOnly(*context_, weights, &bytes_);
       ring_lengths_ = uploadReadOnly(*context_, lengths, &bytes_);
     }
-    triangles_ =
-        uploadReadOnly(*context_, mesh.triangles.data(),
-                       static_cast<size_t>(mesh.triangles.size()), &bytes_);
     normal_offsets_ =
         uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
-    normal_triangles_ =
-        uploadReadOnly(*context_, mesh.normal_adjacency.triangles, &bytes_);
+    normal_corners_ = uploadReadOnly(
+        *context_, mesh.normal_adjacency.corners(mesh.triangles), &bytes_);
     const size_t floats3 = 3 * n * sizeof(float);
     const std::string per_vertex = "ClSurfaceTracking: per-vertex state of " +
                                    std::to_string(n) + " vertices";
@@ -452,11 +449,10 @@ void ClSurfaceTracking::finish() {
     user_order_ = true;
     normals_kernel_.setArg(0, n);
     normals_kernel_.setArg(1, positions_[current_]);
-    normals_kernel_.setArg(2, triangles_);
-    normals_kernel_.setArg(3, normal_offsets_);
-    normals_kernel_.setArg(4, normal_triangles_);
-    normals_kernel_.setArg(5, fallback_normals_);
-    normals_kernel_.setArg(6, normals_);
+    normals_kernel_.setArg(2, normal_offsets_);
+    normals_kernel_.setArg(3, normal_corners_);
+    normals_kernel_.setArg(4, fallback_normals_);
+    normals_kernel_.setArg(5, normals_);
     launch(normals_kernel_, kNormals);
   } catch (const cl::Error& e) {
     throwClError(e,

@@ -76,7 +76,9 @@ class ClSkinning {
   cl::Kernel lbs_kernel_, dqs_kernel_, normals_kernel_;
   cl::Buffer rest_positions_, rest_normals_;
   cl::Buffer influence_offsets_, influence_joints_, influence_weights_;
-  cl::Buffer triangles_, adjacency_offsets_, adjacency_triangles_;
+  // Vertex -> triangle rows, each entry its triangle's 3 corners
+  // (VertexTriangleAdjacency::corners).
+  cl::Buffer adjacency_offsets_, adjacency_corners_;
   cl::Buffer joint_transforms_;
   std::vector<float> staging_;  // packed joint transforms of the last run
   cl::Buffer skinned_normals_, out_positions_, out_normals_;

@@ -119,8 +119,8 @@ class ClSurfaceTracking {
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
       neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
-      ring_neighbours_, ring_weights_, ring_lengths_, triangles_,
-      normal_offsets_, normal_triangles_;
+      ring_neighbours_, ring_weights_, ring_lengths_, normal_offsets_,
+      normal_corners_;  // VertexTriangleAdjacency::corners
   // trackingLengths per vertex: (max step, min gradient), smoothing radius.
   cl::Buffer step_limits_, radii_;
   // The device's vertex order (see the constructor): order_[k] is the
