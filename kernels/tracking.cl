@@ -16,8 +16,9 @@
 // state per vertex (TRACK_* below); prev_gradients one float4 per vertex
 // (xyz the unit gradient of the vertex's last projection step, w = 1 when
 // set); one-rings as compressed rows (ring_offsets, ring_neighbours,
-// ring_weights); one uchar relaxation rule per vertex (RULE_FIXED: neither
-// relaxed nor smoothed).
+// ring_weights), and the same rows filtered to the neighbours within each
+// vertex's smoothing radius (near_offsets, near_neighbours); one uchar
+// relaxation rule per vertex (RULE_FIXED: neither relaxed nor smoothed).
 
 #include "fields.cl"
 
@@ -342,31 +343,27 @@ __kernel void track_beta_init(const uint vertex_count,
                      states[v] == TRACK_CREASE ? 1.0f : 0.0f);
 }
 
-// One diffusion of (beta, gamma) over the one-ring (the neighbours within
-// the vertex's smoothing radius, radii[v], rest distance), beta_in ->
-// beta_out, of the channels whose `channels` entry is 1: sources stay at
-// 1, the others take the mean of themselves and their neighbours
-// (duplicates, with no ring, keep theirs).
+// One diffusion of (beta, gamma) over the neighbours within the vertex's
+// smoothing radius (rest distance): its one-ring filtered once by the host,
+// in ring order, as compressed rows (near_offsets, near_neighbours), so no
+// ring length is read per step. beta_in -> beta_out, of the channels whose
+// `channels` entry is 1: sources stay at 1, the others take the mean of
+// themselves and their neighbours (duplicates, with no ring, keep theirs).
 __kernel void track_beta_diffuse(const uint vertex_count,
                                  __global const uchar* states,
-                                 __global const uint* ring_offsets,
-                                 __global const int* ring_neighbours,
-                                 __global const float* ring_lengths,
-                                 __global const float* radii,
+                                 __global const uint* near_offsets,
+                                 __global const int* near_neighbours,
                                  __global const float2* beta_in,
                                  __global float2* beta_out,
                                  const float2 channels) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const uint begin = ring_offsets[v];
-  const uint end = ring_offsets[v + 1];
-  const float radius = radii[v];
   const float2 b = beta_in[v];
   float2 sum = b;
   float count = 1.0f;
-  for (uint i = begin; i < end; ++i) {
-    if (!(ring_lengths[i] <= radius)) continue;
-    sum += beta_in[ring_neighbours[i]];
+  const uint end = near_offsets[v + 1];
+  for (uint i = near_offsets[v]; i < end; ++i) {
+    sum += beta_in[near_neighbours[i]];
     count += 1.0f;
   }
   float2 out = sum / count;
@@ -377,17 +374,18 @@ __kernel void track_beta_diffuse(const uint vertex_count,
   beta_out[v] = out;
 }
 
-// One Laplacian step over the neighbours within radii[v] (rest distance),
-// positions_in -> positions_out: full, weighted by beta
-// (eq. 7), and tangential (normal to the ring) weighted by (1 - beta) gamma;
-// `weights` (0 or 1 each) switches the two off once their steps are done.
+// One Laplacian step over the neighbours within the smoothing radius (the
+// filtered rows of track_beta_diffuse), positions_in -> positions_out: full,
+// weighted by beta (eq. 7), and tangential (normal to the whole one-ring)
+// weighted by (1 - beta) gamma; `weights` (0 or 1 each) switches the two
+// off once their steps are done.
 __kernel void track_smooth(const uint vertex_count,
                            __global const uchar* rules,
                            __global const uchar* kinds,
                            __global const uint* ring_offsets,
                            __global const int* ring_neighbours,
-                           __global const float* ring_lengths,
-                           __global const float* radii,
+                           __global const uint* near_offsets,
+                           __global const int* near_neighbours,
                            __global const float2* beta,
                            __global const float* positions_in,
                            __global float* positions_out,
@@ -398,20 +396,17 @@ __kernel void track_smooth(const uint vertex_count,
   float3 out = x;
   const float2 bc = beta[v] * weights;
   if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != RULE_FIXED) {
-    const uint begin = ring_offsets[v];
-    const uint end = ring_offsets[v + 1];
-    const float radius = radii[v];
     float3 centroid = (float3)(0.0f);
-    int near = 0;
-    for (uint i = begin; i < end; ++i) {
-      if (!(ring_lengths[i] <= radius)) continue;
-      centroid += vload3(ring_neighbours[i], positions_in);
-      ++near;
-    }
+    const uint near_begin = near_offsets[v];
+    const int near = (int)(near_offsets[v + 1] - near_begin);
+    for (int i = 0; i < near; ++i)
+      centroid += vload3(near_neighbours[near_begin + i], positions_in);
     centroid /= (float)max(near, 1);
     const float3 d = near > 0 ? centroid - x : (float3)(0.0f);
     float3 tangential = (float3)(0.0f);
     if (bc.y > 0.0f && near > 0 && kinds[v] == RING_CLOSED) {
+      const uint begin = ring_offsets[v];
+      const uint end = ring_offsets[v + 1];
       float3 normal = (float3)(0.0f);
       for (uint i = begin; i < end; ++i) {
         const uint j = i + 1 < end ? i + 1 : begin;

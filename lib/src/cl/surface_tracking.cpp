@@ -128,7 +128,6 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       radii[k] = lengths.smoothing_radius[order_[k]];
     }
     step_limits_ = uploadReadOnly(*context_, step_limits, &bytes_);
-    radii_ = uploadReadOnly(*context_, radii, &bytes_);
     const size_t fields = static_cast<size_t>(mesh.field_count);
     auto int_buffer = [&](size_t count) {
       bytes_ += std::max<size_t>(count, 1) * sizeof(int);
@@ -157,7 +156,7 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     {  // the one-rings in device order, neighbours as device indices
       std::vector<uint32_t> offsets(1, 0);
       std::vector<int> neighbours;
-      std::vector<float> weights, lengths;
+      std::vector<float> weights, lengths;  // lengths: rest, for the filter
       neighbours.reserve(mesh.rings.neighbours.size());
       for (int k = 0; k < vertex_count_; ++k) {
         const int v = order_[k];
@@ -172,7 +171,19 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       ring_offsets_ = uploadReadOnly(*context_, offsets, &bytes_);
       ring_neighbours_ = uploadReadOnly(*context_, neighbours, &bytes_);
       ring_weights_ = uploadReadOnly(*context_, weights, &bytes_);
-      ring_lengths_ = uploadReadOnly(*context_, lengths, &bytes_);
+      // The neighbours within each vertex's smoothing radius (rest
+      // distance), in ring order: the rows the diffusion and the Laplacian
+      // steps average over, filtered once here instead of at every step.
+      std::vector<uint32_t> near_offsets(1, 0);
+      std::vector<int> near;
+      near.reserve(neighbours.size());
+      for (int k = 0; k < vertex_count_; ++k) {
+        for (uint32_t i = offsets[k]; i < offsets[k + 1]; ++i)
+          if (lengths[i] <= radii[k]) near.push_back(neighbours[i]);
+        near_offsets.push_back(static_cast<uint32_t>(near.size()));
+      }
+      near_offsets_ = uploadReadOnly(*context_, near_offsets, &bytes_);
+      near_neighbours_ = uploadReadOnly(*context_, near, &bytes_);
     }
     normal_offsets_ =
         uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
@@ -395,16 +406,14 @@ void ClSurfaceTracking::smooth() {
         std::max(options_.beta_diffusion, options_.crease_diffusion);
     for (int k = 0; k < diffusions; ++k) {
       beta_diffuse_.setArg(
-          8, cl_float2{{k < options_.beta_diffusion ? 1.f : 0.f,
+          6, cl_float2{{k < options_.beta_diffusion ? 1.f : 0.f,
                         k < options_.crease_diffusion ? 1.f : 0.f}});
       beta_diffuse_.setArg(0, n);
       beta_diffuse_.setArg(1, states_);
-      beta_diffuse_.setArg(2, ring_offsets_);
-      beta_diffuse_.setArg(3, ring_neighbours_);
-      beta_diffuse_.setArg(4, ring_lengths_);
-      beta_diffuse_.setArg(5, radii_);
-      beta_diffuse_.setArg(6, beta_[b]);
-      beta_diffuse_.setArg(7, beta_[1 - b]);
+      beta_diffuse_.setArg(2, near_offsets_);
+      beta_diffuse_.setArg(3, near_neighbours_);
+      beta_diffuse_.setArg(4, beta_[b]);
+      beta_diffuse_.setArg(5, beta_[1 - b]);
       launch(beta_diffuse_, kSmoothing);
       b = 1 - b;
     }
@@ -421,8 +430,8 @@ void ClSurfaceTracking::smooth() {
       smooth_.setArg(2, kinds_);
       smooth_.setArg(3, ring_offsets_);
       smooth_.setArg(4, ring_neighbours_);
-      smooth_.setArg(5, ring_lengths_);
-      smooth_.setArg(6, radii_);
+      smooth_.setArg(5, near_offsets_);
+      smooth_.setArg(6, near_neighbours_);
       smooth_.setArg(7, beta_[0]);
       smooth_.setArg(8, positions_[current_]);
       smooth_.setArg(9, positions_[1 - current_]);

@@ -119,10 +119,13 @@ class ClSurfaceTracking {
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
       neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
-      ring_neighbours_, ring_weights_, ring_lengths_, normal_offsets_,
+      ring_neighbours_, ring_weights_, normal_offsets_,
       normal_corners_;  // VertexTriangleAdjacency::corners
-  // trackingLengths per vertex: (max step, min gradient), smoothing radius.
-  cl::Buffer step_limits_, radii_;
+  // The one-rings filtered to the neighbours within each vertex's smoothing
+  // radius (rest distance), in ring order (diffusion, Laplacian steps).
+  cl::Buffer near_offsets_, near_neighbours_;
+  // trackingLengths per vertex: (max step, min gradient).
+  cl::Buffer step_limits_;
   // The device's vertex order (see the constructor): order_[k] is the
   // mesh's vertex at device index k; the first march_count_ are the
   // tracked vertices in march order.
