@@ -229,6 +229,7 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever == "no-march-order") options.tracking.march_order = false;
   if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
   if (lever == "no-value-bounds") options.tracking.value_bounds = false;
+  if (lever == "no-lane-tests") options.tracking.lane_tests = false;
   if (lever == "no-neighbourhood-cells")
     options.tracking.neighbourhood_cells = 1;  // the whole box
   if (lever.rfind("sigma-", 0) == 0)
@@ -521,7 +522,7 @@ void registerImplicitBenchmarks() {
       for (const char* lever :
            {"all", "no-neighbourhoods", "no-neighbourhood-cells",
             "no-march-order", "no-occupied-cells", "no-value-bounds",
-            "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1"})
+            "no-lane-tests", "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

@@ -167,7 +167,8 @@ class Results:
                                  r"implicit|cold|warm|in-process|all|"
                                  r"no-neighbourhoods|no-neighbourhood-cells|"
                                  r"no-march-order|no-occupied-cells|"
-                                 r"no-value-bounds|x\d+):(\d+)",
+                                 r"no-value-bounds|no-lane-tests|"
+                                 r"x\d+):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
                     self.devices[int(m.group(2))] = {
@@ -594,7 +595,7 @@ def implicit_section(results):
 
 LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
-          "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
+          "no-lane-tests", "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
 
 
 def moved(run):
@@ -645,7 +646,10 @@ def levers_section(results):
               "switches those off) and `value_bounds` (the projection skips "
               "a field whose value bound in the cell, one byte per cell, "
               "`isk::cellValueBounds`, shows it can change nothing: below "
-              "the home field's value and the best so far). "
+              "the home field's value and the best so far) and "
+              "`lane_tests` (on a CPU device the projection tests a cell's "
+              "listed fields' spheres and grid boxes eight at a time, in "
+              "float8 lanes, instead of one by one). "
               "None changes the result (tests compare the frames bit for "
               "bit); 'all' has every switch on. 'half-grids' is the other "
               "way round: every switch on, and the grids rounded to half "

@@ -57,12 +57,65 @@
       __global const int *partners, __global const int *neighbour_offsets, \
       __global const int *neighbour_entries,                             \
       __global const int *neighbour_pair_offsets,                        \
-      __global const int *neighbour_pairs, const float4 contact_params
+      __global const int *neighbour_pairs, const float4 contact_params,  \
+      __global const int *lane_offsets, __global const float8 *lane_params, \
+      __global const uchar *lane_masks
 #define ISK_TRACKING_ARGS                                                \
   home_fields, home_margins, partners, neighbour_offsets, neighbour_entries, \
-      neighbour_pair_offsets, neighbour_pairs, contact_params
+      neighbour_pair_offsets, neighbour_pairs, contact_params, lane_offsets, \
+      lane_params, lane_masks
+#ifndef ISK_LANE_TESTS
+#define ISK_LANE_TESTS 0
+#endif
+// ISK_LANE_TESTS=1 (the host's choice on a CPU device): sample_tracking
+// tests a cell's listed fields eight at a time. lane_offsets[h] ..
+// lane_offsets[h + 1]: home field h's chunks of 8 lanes, its neighbourhood
+// (neighbour entries of the whole box, in order) 8 fields per chunk;
+// lane_params: ISK_LANE_ROWS float8 per chunk, lane l of row r the
+// field's value: rows 0..11 field_params [0..2] (the 3x4 rows), 12..14
+// box_min, 15..17 1 / spacing, 18..21 the bounding sphere, 22 the
+// neighbour entry and 23 the grid (ints); a padding lane's sphere radius is
+// -1. lane_masks: per chunk and cell (chunk-major per home field: byte
+// (lane_offsets[h] * cells^3 + cell * chunks + k)) the lanes the cell lists.
+#define ISK_LANE_ROWS 24
 #define NEIGHBOUR_PARTNER 0x10000
 #define NEIGHBOUR_FIELD 0xffff
+
+// One listed field of sample_tracking (below) whose sphere and grid hold
+// the point, at node coordinates u in grid `grid` (the home field: its
+// sample, home_sample): the cell and bound tests, the sample, the unions.
+ISK_INLINE void take_listed_field(
+    ISK_FIELD_DATA_T field_data, __global const float4* field_params,
+    __global const uchar* field_cells, const int resolution, const int entry,
+    const uint grid, const float3 u, const int home, const float4 home_sample,
+    const bool bounded, const float other_limit, float4* best, float4* h,
+    float4* other) {
+  const uint i = (uint)(entry & NEIGHBOUR_FIELD);
+  float4 s = home_sample;
+  if ((int)i != home) {
+    const uint b = field_cells[cell_index(grid, resolution, u)];
+    if (b == 0u) return;  // zero at all 8 nodes
+    if (bounded && b < 255u) {
+      const float bound = (float)b * (1.0f / 255.0f);
+      if (bound < fmax(best->x, home_sample.x) &&
+          ((entry & NEIGHBOUR_PARTNER) || bound <= other_limit))
+        return;  // changes nothing (see sample_tracking)
+    }
+    __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * i;
+    const float4 g =
+        sample_grid_nodes(field_data, field_params, i, grid, resolution, u);
+    s = (float4)(g.x, g.y * p[0].xyz + g.z * p[1].xyz + g.w * p[2].xyz);
+  }
+  // A zero value changes none of the unions, and the home sample is only
+  // used where its value is above 0: skip the bookkeeping (a chain of
+  // selects per listed field).
+  if (!(s.x > 0.0f)) return;
+  *best = compose_union(*best, s);
+  if ((int)i == home)
+    *h = s;
+  else if (!(entry & NEIGHBOUR_PARTNER))
+    *other = compose_union(*other, s);
+}
 
 // The composed field at x, plus the home field's sample and the largest
 // sample of the other parts' fields (neither the home field nor its
@@ -112,39 +165,72 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                        (int3)(cells - 1));
     const int cell =
         home * cells * cells * cells + c.x + cells * (c.y + cells * c.z);
+#if ISK_LANE_TESTS
+    // The listed fields' sphere and grid tests eight at a time: the home
+    // field's neighbourhood in chunks of 8 lanes (lane_params, the list's
+    // order), the cell's list a mask of each chunk's lanes (lane_masks).
+    const int first_chunk = lane_offsets[home];
+    const int chunks = lane_offsets[home + 1] - first_chunk;
+    __global const uchar* masks =
+        lane_masks + (size_t)first_chunk * (size_t)(cells * cells * cells) +
+        (size_t)((c.x + cells * (c.y + cells * c.z)) * chunks);
+    const float last = (float)(resolution - 1);
+    float lane_u[24];
+    for (int k = 0; k < chunks; ++k) {
+      uint bits = masks[k];
+      if (bits == 0u) continue;
+      __global const float8* L =
+          lane_params + (size_t)(first_chunk + k) * ISK_LANE_ROWS;
+      // inside_sphere, field_node_coords and inside_nodes: the same
+      // operations in each lane.
+      const float8 dx = x.x - L[18], dy = x.y - L[19], dz = x.z - L[20];
+      const int8 in_sphere = dx * dx + dy * dy + dz * dz <= L[21];
+      const float8 ux =
+          (L[0] * x.x + L[1] * x.y + L[2] * x.z + L[3] - L[12]) * L[15];
+      const float8 uy =
+          (L[4] * x.x + L[5] * x.y + L[6] * x.z + L[7] - L[13]) * L[16];
+      const float8 uz =
+          (L[8] * x.x + L[9] * x.y + L[10] * x.z + L[11] - L[14]) * L[17];
+      const int8 inside = in_sphere & (ux >= 0.0f) & (uy >= 0.0f) &
+                          (uz >= 0.0f) & (ux <= last) & (uy <= last) &
+                          (uz <= last);
+      const int8 m = inside & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
+      const int4 m4 = m.lo + m.hi;
+      const int2 m2 = m4.lo + m4.hi;
+      bits &= (uint)(m2.x + m2.y);
+      vstore8(ux, 0, lane_u);
+      vstore8(uy, 0, lane_u + 8);
+      vstore8(uz, 0, lane_u + 16);
+      __global const int* lane_entries = (__global const int*)(L + 22);
+      __global const int* lane_grids = (__global const int*)(L + 23);
+      while (bits != 0u) {  // the lanes left, lowest first
+        const uint lane = 31u - clz(bits & (0u - bits));
+        bits &= bits - 1u;
+        take_listed_field(
+            field_data, field_params, field_cells, resolution,
+            lane_entries[lane], (uint)lane_grids[lane],
+            (float3)(lane_u[lane], lane_u[8 + lane], lane_u[16 + lane]), home,
+            home_sample, bounded, other_limit, &best, &h, &other);
+      }
+    }
+#else
     const int end = neighbour_offsets[cell + 1];
     for (int n = neighbour_offsets[cell]; n < end; ++n) {
       const int entry = neighbour_entries[n];
       const uint i = (uint)(entry & NEIGHBOUR_FIELD);
       if (!inside_sphere(field_params, i, x)) continue;
-      float4 s = home_sample;
+      float3 u = home_u;
+      uint grid = 0u;
       if ((int)i != home) {
-        const float3 u = field_node_coords(field_params, i, x);
+        u = field_node_coords(field_params, i, x);
         if (!inside_nodes(u, resolution)) continue;
-        __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * i;
-        const uint grid = (uint)p[3].w;
-        const uint b = field_cells[cell_index(grid, resolution, u)];
-        if (b == 0u) continue;  // zero at all 8 nodes
-        if (bounded && b < 255u) {
-          const float bound = (float)b * (1.0f / 255.0f);
-          if (bound < fmax(best.x, home_sample.x) &&
-              ((entry & NEIGHBOUR_PARTNER) || bound <= other_limit))
-            continue;  // changes nothing (see above)
-        }
-        const float4 g = sample_grid_nodes(field_data, field_params, i, grid,
-                                           resolution, u);
-        s = (float4)(g.x, g.y * p[0].xyz + g.z * p[1].xyz + g.w * p[2].xyz);
+        grid = (uint)field_params[ISK_FIELD_PARAM_STRIDE * i + 3].w;
       }
-      // A zero value changes none of the unions, and the home sample is
-      // only used where its value is above 0: skip the bookkeeping (a chain
-      // of selects per listed field).
-      if (!(s.x > 0.0f)) continue;
-      best = compose_union(best, s);
-      if ((int)i == home)
-        h = s;
-      else if (!(entry & NEIGHBOUR_PARTNER))
-        other = compose_union(other, s);
+      take_listed_field(field_data, field_params, field_cells, resolution,
+                        entry, grid, u, home, home_sample, bounded,
+                        other_limit, &best, &h, &other);
     }
+#endif
     const int pairs_end = neighbour_pair_offsets[home + 1];
     for (int n = neighbour_pair_offsets[home]; n < pairs_end; ++n) {
       const uint k = (uint)neighbour_pairs[n];

@@ -1130,14 +1130,15 @@ TEST(ImplicitSkinner, CharactersShareOneContext) {
 }
 
 // The speed switches (neighbourhoods, march order, occupied cells, value
-// bounds) change no result: the same frame with each off, on the CPU
-// reference and on OpenCL.
+// bounds, lane tests) change no result: the same frame with each off, on
+// the CPU reference and on OpenCL.
 void checkSpeedSwitches(const Rig& rig,
                         std::shared_ptr<const ImplicitFields> fields,
                         const TransformList& pose) {
   struct Switches {
     bool neighbourhoods = true, march_order = true, cells = true, bounds = true;
     int neighbourhood_cells = 0;  // the device's choice (PoCL: 4)
+    bool lanes = true;
   };
   auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
@@ -1146,6 +1147,7 @@ void checkSpeedSwitches(const Rig& rig,
     options.tracking.march_order = on.march_order;
     options.tracking.occupied_cells = on.cells;
     options.tracking.value_bounds = on.bounds;
+    options.tracking.lane_tests = on.lanes;
     CpuImplicitSkinner cpu(rig, fields, options);
     cpu.run(pose);
     ImplicitSkinner device(test::sharedContext(), rig, fields, options);
@@ -1161,13 +1163,17 @@ void checkSpeedSwitches(const Rig& rig,
         Switches{false, false, false, false},
         Switches{true, true, true, true, 1},
         Switches{true, true, true, true, 7},
-        Switches{true, true, false, false, 1}}) {
+        Switches{true, true, false, false, 1},
+        Switches{true, true, true, true, 0, false},
+        Switches{true, true, true, true, 1, false},
+        Switches{true, true, true, false, 7, false}}) {
     SCOPED_TRACE(std::string("neighbourhoods ") +
                  (on.neighbourhoods ? "on" : "off") + ", march order " +
                  (on.march_order ? "on" : "off") + ", occupied cells " +
                  (on.cells ? "on" : "off") + ", value bounds " +
                  (on.bounds ? "on" : "off") + ", neighbourhood cells " +
-                 std::to_string(on.neighbourhood_cells));
+                 std::to_string(on.neighbourhood_cells) + ", lane tests " +
+                 (on.lanes ? "on" : "off"));
     const auto other = frames(on);
     const test::RowMismatch cpu =
         test::largestRowDistance(other.first, all.first);
@@ -1195,6 +1201,26 @@ TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnProceduralRigs) {
     for (const TransformList& pose : clipPoses(arm, 4))
       checkSpeedSwitches(arm, fields, pose);
   }
+}
+
+// Sixteen short bones: neighbourhoods of more than 8 fields, so the lane
+// tests take them in several chunks (as on human-addon).
+TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnAManyBoneCylinder) {
+  CylinderRigOptions shape;
+  shape.bones = 16;
+  shape.rings = 96;
+  shape.segments = 24;
+  const test::RigWithFields c = test::withDefaultFields(makeCylinderRig(shape));
+  const TransformList pose = clipPoses(c.rig, 3).back();
+  const TrackingMesh mesh = TrackingMesh::build(c.rig.mesh, *c.fields);
+  const FieldNeighbourhoods nb = fieldNeighbourhoods(
+      mesh, c.fields->grids, fieldTransforms(c.fields->grids, pose),
+      activePartners(mesh, pose));
+  int longest = 0;
+  for (size_t h = 0; h + 1 < nb.offsets.size(); ++h)
+    longest = std::max(longest, nb.offsets[h + 1] - nb.offsets[h]);
+  EXPECT_GT(longest, 8) << "no neighbourhood spans two chunks of lanes";
+  checkSpeedSwitches(c.rig, c.fields, pose);
 }
 
 TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnAssets) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <type_traits>
 
@@ -11,6 +12,11 @@
 
 namespace isk {
 namespace {
+
+// The lane tests' chunks (tracking.cl, ISK_LANE_TESTS): 8 lanes (one mask
+// byte per chunk and cell), ISK_LANE_ROWS rows of 8 floats.
+constexpr int kLaneWidth = 8;
+constexpr size_t kLaneFloats = 24 * kLaneWidth;
 
 size_t roundUp(size_t n, size_t multiple) {
   return (n + multiple - 1) / multiple * multiple;
@@ -66,10 +72,13 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       options.neighbourhood_cells > 0            ? options.neighbourhood_cells
       : context_->info().is_cpu && many_vertices ? kCpuCellsPerAxis
                                                  : 1;
+  lane_tests_ = options.lane_tests && context_->info().is_cpu &&
+                options.field_neighbourhoods;
   try {
     cl::Program tracking = context_->program(
         "tracking", fields.buildOptions() + " -DISK_NEIGHBOUR_CELLS=" +
-                        std::to_string(cells_per_axis_));
+                        std::to_string(cells_per_axis_) +
+                        (lane_tests_ ? " -DISK_LANE_TESTS=1" : ""));
     begin_ = cl::Kernel(tracking, "track_begin");
     project_ = cl::Kernel(tracking, "track_project");
     relax_ = cl::Kernel(tracking, "track_relax");
@@ -144,6 +153,11 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     neighbour_entry_capacity_ = std::max<size_t>(fields * fields, 1);
     neighbour_entries_ = int_buffer(neighbour_entry_capacity_);
     neighbour_pair_offsets_ = int_buffer(fields + 1);
+    // The lane tests' chunks come with the first pose (buildLanes); until
+    // then, and without lane tests, placeholders for the kernel arguments.
+    lane_offsets_ = int_buffer(fields + 1);
+    lane_params_ = int_buffer(1);
+    lane_masks_ = int_buffer(1);
     neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
     if (!options.occupied_cells) {  // no cell clear, no bound: no skipping
       const size_t cells =
@@ -268,6 +282,93 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
       cl_float4{{options_.home_contact ? 1.f : 0.f, options_.contact_gap,
                  options_.field_neighbourhoods ? 1.f : 0.f,
                  options_.value_bounds ? 1.f : 0.f}});
+  kernel.setArg(first_index + 8, lane_offsets_);
+  kernel.setArg(first_index + 9, lane_params_);
+  kernel.setArg(first_index + 10, lane_masks_);
+}
+
+void ClSurfaceTracking::buildLanes() {
+  const FieldNeighbourhoods& nb = neighbourhoods_;
+  const int field_count = static_cast<int>(nb.offsets.size()) - 1;
+  const int cells = nb.cells_per_axis * nb.cells_per_axis * nb.cells_per_axis;
+  const std::vector<float>& params = fields_->hostFieldParams();
+  const size_t stride = ClFieldEvaluation::kParamStride * 4;
+  lane_offsets_staging_.assign(1, 0);
+  for (int h = 0; h < field_count; ++h)
+    lane_offsets_staging_.push_back(
+        lane_offsets_staging_.back() +
+        (nb.offsets[h + 1] - nb.offsets[h] + kLaneWidth - 1) / kLaneWidth);
+  const size_t chunks = static_cast<size_t>(lane_offsets_staging_.back());
+  lane_params_staging_.assign(std::max<size_t>(chunks, 1) * kLaneFloats, 0.f);
+  lane_masks_staging_.assign(std::max<size_t>(chunks, 1) * cells, 0);
+  for (int h = 0; h < field_count; ++h) {
+    const int first = nb.offsets[h], count = nb.offsets[h + 1] - first;
+    const int chunk0 = lane_offsets_staging_[h];
+    const int chunks_h = lane_offsets_staging_[h + 1] - chunk0;
+    for (int n = 0; n < chunks_h * kLaneWidth; ++n) {
+      float* L = &lane_params_staging_[(chunk0 + n / kLaneWidth) * kLaneFloats];
+      const int lane = n % kLaneWidth;
+      auto put = [&](int row, float value) {
+        L[row * kLaneWidth + lane] = value;
+      };
+      if (n >= count) {
+        put(21, -1.f);  // never inside its sphere
+        continue;
+      }
+      const int entry = nb.entries[first + n];
+      const int i = entry & FieldNeighbourhoods::kFieldMask;
+      const float* p = &params[static_cast<size_t>(i) * stride];
+      for (int r = 0; r < 12; ++r) put(r, p[r]);
+      for (int a = 0; a < 3; ++a) {
+        put(12 + a, p[12 + a]);
+        put(15 + a, p[16 + a]);
+      }
+      for (int a = 0; a < 4; ++a) put(18 + a, p[24 + a]);
+      int grid = static_cast<int>(p[15]);
+      std::memcpy(&L[22 * kLaneWidth + lane], &entry, sizeof(int));
+      std::memcpy(&L[23 * kLaneWidth + lane], &grid, sizeof(int));
+    }
+    // Each cell's list is a subsequence of the neighbourhood's, in order.
+    for (int c = 0; c < cells; ++c) {
+      const int cell = h * cells + c;
+      uint8_t* masks =
+          &lane_masks_staging_[(static_cast<size_t>(chunk0) * cells +
+                                static_cast<size_t>(c) * chunks_h)];
+      int n = 0;
+      for (int e = nb.cell_offsets[cell]; e < nb.cell_offsets[cell + 1]; ++e) {
+        while (n < count && nb.entries[first + n] != nb.cell_entries[e]) ++n;
+        if (n == count)
+          throw Error(ErrorCode::kInternal,
+                      "ClSurfaceTracking: a cell list of field " +
+                          std::to_string(h) + " is not in its neighbourhood");
+        masks[n / kLaneWidth] |= static_cast<uint8_t>(1u << (n % kLaneWidth));
+        ++n;
+      }
+    }
+  }
+  if (chunks > lane_chunk_capacity_) {  // a pose with longer lists
+    bytes_ -= lane_params_.getInfo<CL_MEM_SIZE>() +
+              lane_masks_.getInfo<CL_MEM_SIZE>();
+    lane_chunk_capacity_ = 2 * chunks;
+    bytes_ += lane_chunk_capacity_ * (kLaneFloats * sizeof(float) + cells);
+    lane_params_ = context_->createBuffer(
+        CL_MEM_READ_ONLY, lane_chunk_capacity_ * kLaneFloats * sizeof(float),
+        nullptr, "ClSurfaceTracking: lane tests");
+    lane_masks_ =
+        context_->createBuffer(CL_MEM_READ_ONLY, lane_chunk_capacity_ * cells,
+                               nullptr, "ClSurfaceTracking: lane masks");
+  }
+  auto& queue = context_->queue();
+  queue.enqueueWriteBuffer(lane_offsets_, CL_FALSE, 0,
+                           lane_offsets_staging_.size() * sizeof(int),
+                           lane_offsets_staging_.data());
+  if (chunks > 0) {
+    queue.enqueueWriteBuffer(lane_params_, CL_FALSE, 0,
+                             chunks * kLaneFloats * sizeof(float),
+                             lane_params_staging_.data());
+    queue.enqueueWriteBuffer(lane_masks_, CL_FALSE, 0, chunks * cells,
+                             lane_masks_staging_.data());
+  }
 }
 
 void ClSurfaceTracking::begin(const TransformList& skinning,
@@ -316,6 +417,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     write(neighbour_entries_, neighbourhoods_.cell_entries);
     write(neighbour_pair_offsets_, neighbourhoods_.pair_offsets);
     write(neighbour_pairs_, neighbourhoods_.pairs);
+    if (lane_tests_) buildLanes();
     times_ = {};
     events_.clear();
     current_ = 0;
@@ -362,10 +464,10 @@ void ClSurfaceTracking::project(int steps) {
         6, cl_float4{{options_.sigma, cos_contact, options_.tolerance, 0.f}});
     project_.setArg(7, step_limits_);
     setContactArgs(project_, 8);
-    fields_->setFieldArgs(project_, 16);
-    if (!options_.occupied_cells) project_.setArg(20, every_cell_);
-    fields_->setCompositionArgs(project_, 21);
-    project_.setArg(27, relax_frames_);
+    fields_->setFieldArgs(project_, 19);
+    if (!options_.occupied_cells) project_.setArg(23, every_cell_);
+    fields_->setCompositionArgs(project_, 24);
+    project_.setArg(30, relax_frames_);
     launch(project_, kProjection, march_count_);
   } catch (const cl::Error& e) {
     throwClError(

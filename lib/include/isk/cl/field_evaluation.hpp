@@ -162,6 +162,8 @@ class ClFieldEvaluation {
   const cl::Buffer& fieldBuffer() const { return nodes_; }
   // kParamStride float4 per field (fields.cl's layout), the last setPose's.
   const cl::Buffer& fieldParams() const { return params_; }
+  // The same kParamStride * 4 floats per field, as uploaded.
+  const std::vector<float>& hostFieldParams() const { return params_staging_; }
 
   // The grids without their nodes (joints, frames, boxes), and each
   // field's model -> bone transform at the last setPose.

@@ -112,6 +112,16 @@ class ClSurfaceTracking {
   // device, 1 (no split) on others.
   static constexpr int kCpuCellsPerAxis = 4;
   int cells_per_axis_ = 1;
+  // The lane tests (options.lane_tests, on a CPU device): per home field
+  // its neighbourhood's fields in chunks of 8 lanes, built and uploaded at
+  // each pose by buildLanes (layout: kernels/tracking.cl, ISK_LANE_TESTS).
+  bool lane_tests_ = false;
+  void buildLanes();
+  std::vector<int> lane_offsets_staging_;  // read by non-blocking writes
+  std::vector<float> lane_params_staging_;
+  std::vector<uint8_t> lane_masks_staging_;
+  size_t lane_chunk_capacity_ = 0;  // chunks lane_params_ holds
+  cl::Buffer lane_offsets_, lane_params_, lane_masks_;
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, normals_kernel_;
