@@ -230,6 +230,7 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
   if (lever == "no-value-bounds") options.tracking.value_bounds = false;
   if (lever == "no-lane-tests") options.tracking.lane_tests = false;
+  if (lever == "no-active-vertices") options.tracking.active_vertices = false;
   if (lever == "no-neighbourhood-cells")
     options.tracking.neighbourhood_cells = 1;  // the whole box
   if (lever.rfind("sigma-", 0) == 0)
@@ -522,7 +523,8 @@ void registerImplicitBenchmarks() {
       for (const char* lever :
            {"all", "no-neighbourhoods", "no-neighbourhood-cells",
             "no-march-order", "no-occupied-cells", "no-value-bounds",
-            "no-lane-tests", "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1"})
+            "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
+            "sigma-0.7", "sigma-1"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

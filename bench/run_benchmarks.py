@@ -168,6 +168,7 @@ class Results:
                                  r"no-neighbourhoods|no-neighbourhood-cells|"
                                  r"no-march-order|no-occupied-cells|"
                                  r"no-value-bounds|no-lane-tests|"
+                                 r"no-active-vertices|"
                                  r"x\d+):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
@@ -595,7 +596,8 @@ def implicit_section(results):
 
 LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
-          "no-lane-tests", "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1")
+          "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
+          "sigma-0.7", "sigma-1")
 
 
 def moved(run):
@@ -649,7 +651,11 @@ def levers_section(results):
               "the home field's value and the best so far) and "
               "`lane_tests` (on a CPU device the projection tests a cell's "
               "listed fields' spheres and grid boxes eight at a time, in "
-              "float8 lanes, instead of one by one). "
+              "float8 lanes, instead of one by one) and "
+              "`active_vertices` (the relaxation launches skip the stopped "
+              "vertices, the diffusion and Laplacian launches the vertices "
+              "out of reach of every contact and crease vertex, instead of "
+              "copying them). "
               "None changes the result (tests compare the frames bit for "
               "bit); 'all' has every switch on. 'half-grids' is the other "
               "way round: every switch on, and the grids rounded to half "

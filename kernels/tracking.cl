@@ -31,6 +31,10 @@
 #define RULE_FIXED 3
 #define RING_CLOSED 0
 #define MAX_PARTNERS 8
+// reach[v] (active vertices, track_beta_init): the first diffusion step at
+// which v may change; REACH_NONE: out of reach of every contact and crease.
+#define REACH_NONE 255
+#define REACH_MAX 254
 // Cells per axis of each home field's box in the cell lists (the host
 // passes its choice for the device: 1, the whole box, or more).
 #ifndef ISK_NEIGHBOUR_CELLS
@@ -265,7 +269,10 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
 // The skinned positions become the working positions, gathered into the
 // device's vertex order (source[v]: the mesh vertex at device index v; the
 // host keeps the tracked vertices first, in march order); every
-// representative with an iso value starts marching.
+// representative with an iso value starts marching. Both position buffers
+// get them, so that the launches that skip vertices (active vertices, see
+// track_relax) find the others the same in either; no vertex is in reach
+// of a contact or crease yet (track_beta_init).
 __kernel void track_begin(const uint vertex_count,
                           __global const float* skinned,
                           __global float* positions,
@@ -274,10 +281,15 @@ __kernel void track_begin(const uint vertex_count,
                           __global uchar* states,
                           __global float4* prev_gradients,
                           __global float4* relax_frames,
-                          __global const int* source) {
+                          __global const int* source,
+                          __global float* positions_other,
+                          __global uchar* reach) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  vstore3(vload3(source[v], skinned), v, positions);
+  const float3 x = vload3(source[v], skinned);
+  vstore3(x, v, positions);
+  vstore3(x, v, positions_other);
+  reach[v] = REACH_NONE;
   states[v] = iso_values[v] > 0.0f && representative[v] == (int)v
                   ? TRACK_MARCHING
                   : TRACK_UNTRACKED;
@@ -298,7 +310,8 @@ __kernel void track_project(const uint march_count, __global float* positions,
                             __global const float2* step_limits,
                             ISK_TRACKING_PARAMS, ISK_FIELD_PARAMS,
                             ISK_COMPOSITION_PARAMS,
-                            __global float4* relax_frames) {
+                            __global float4* relax_frames,
+                            __global float* positions_other) {
   // Work-item v marches vertex v: the device's order puts the tracked
   // vertices first (march_count of them), by home field and rest locality.
   const uint v = get_global_id(0);
@@ -378,16 +391,21 @@ __kernel void track_project(const uint march_count, __global float* positions,
     x += length * unit;
   }
   vstore3(x, v, positions);
+  // Stopped: its last move, in the other buffer too (track_relax skips it).
+  if (state != TRACK_MARCHING) vstore3(x, v, positions_other);
   states[v] = state;
   prev_gradients[v] = prev;
   relax_frames[v] = frame;
 }
 
-// One tangential relaxation step, positions_in -> positions_out (every
-// vertex is written). The surface the vertex marches to (its iso-surface,
-// or the contact surface while it marches to a contact) is taken as its
-// last projection step sampled it (relax_frames: signed distance, unit
-// normal; zero before any step), so relaxation samples no field.
+// One tangential relaxation step, positions_in -> positions_out. With
+// skip_stopped = 0 every vertex is written; with 1 (active vertices) only
+// the marching ones: the others are the same in both buffers (track_begin
+// writes both, and track_project writes a vertex that stops to both). The
+// surface the vertex marches to (its iso-surface, or the contact surface
+// while it marches to a contact) is taken as its last projection step
+// sampled it (relax_frames: signed distance, unit normal; zero before any
+// step), so relaxation samples no field.
 __kernel void track_relax(const uint vertex_count,
                           __global const float* positions_in,
                           __global float* positions_out,
@@ -396,14 +414,17 @@ __kernel void track_relax(const uint vertex_count,
                           __global const uchar* rules,
                           __global const uint* ring_offsets,
                           __global const int* ring_neighbours,
-                          __global const float* ring_weights) {
+                          __global const float* ring_weights,
+                          const uint skip_stopped) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
+  const bool marching = states[v] == TRACK_MARCHING;
+  if (!marching && skip_stopped) return;
   const float3 x = vload3(v, positions_in);
   float3 out = x;
   const float4 frame = relax_frames[v];
   const float3 unit = frame.yzw;
-  if (states[v] == TRACK_MARCHING && rules[v] != RULE_FIXED &&
+  if (marching && rules[v] != RULE_FIXED &&
       unit.x * unit.x + unit.y * unit.y + unit.z * unit.z > 0.0f) {
     const float t = fabs(frame.x) - 1.0f;
     const float mu = max(0.0f, 1.0f - t * t * t * t);
@@ -418,32 +439,71 @@ __kernel void track_relax(const uint vertex_count,
   vstore3(out, v, positions_out);
 }
 
-// (beta, gamma): beta = 1 on contact vertices, gamma = 1 on crease
-// vertices, 0 elsewhere.
-__kernel void track_beta_init(const uint vertex_count,
-                              __global const uchar* states,
-                              __global float2* beta) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
-  beta[v] = (float2)(states[v] == TRACK_CONTACT ? 1.0f : 0.0f,
-                     states[v] == TRACK_CREASE ? 1.0f : 0.0f);
+// Marks v and the vertices whose rows list it (reverse near rows) as in
+// reach from diffusion step `step` on: pushed, so that no vertex reads its
+// neighbours to learn it. Concurrent writers store the same value.
+inline void push_reach(const uint v, const uint step,
+                       __global const uint* reverse_offsets,
+                       __global const int* reverse_neighbours,
+                       __global uchar* reach) {
+  const uchar r = (uchar)min(step, (uint)REACH_MAX);
+  const uint end = reverse_offsets[v + 1];
+  for (uint i = reverse_offsets[v]; i < end; ++i) {
+    const int w = reverse_neighbours[i];
+    if (reach[w] > r) reach[w] = r;
+  }
 }
 
-// One diffusion of (beta, gamma) over the neighbours within the vertex's
-// smoothing radius (rest distance): its one-ring filtered once by the host,
-// in ring order, as compressed rows (near_offsets, near_neighbours), so no
-// ring length is read per step. beta_in -> beta_out, of the channels whose
-// `channels` entry is 1: sources stay at 1, the others take the mean of
-// themselves and their neighbours (duplicates, with no ring, keep theirs).
+// (beta, gamma): beta = 1 on contact vertices, gamma = 1 on crease
+// vertices, 0 elsewhere, in both buffers (the diffusion of active vertices
+// writes only the vertices in reach; the others stay 0 in either). Contact
+// and crease vertices put themselves and the vertices whose rows list them
+// in reach of the first diffusion step (track_begin cleared reach).
+__kernel void track_beta_init(const uint vertex_count,
+                              __global const uchar* states,
+                              __global float2* beta,
+                              __global float2* beta_other,
+                              __global const uint* reverse_offsets,
+                              __global const int* reverse_neighbours,
+                              __global uchar* reach) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const uchar state = states[v];
+  const float2 b = (float2)(state == TRACK_CONTACT ? 1.0f : 0.0f,
+                            state == TRACK_CREASE ? 1.0f : 0.0f);
+  beta[v] = b;
+  beta_other[v] = b;
+  if (b.x > 0.0f || b.y > 0.0f) {
+    reach[v] = 1;
+    push_reach(v, 1, reverse_offsets, reverse_neighbours, reach);
+  }
+}
+
+// Diffusion step `step` (1, 2, ...) of (beta, gamma) over the neighbours
+// within the vertex's smoothing radius (rest distance): its one-ring
+// filtered once by the host, in ring order, as compressed rows
+// (near_offsets, near_neighbours), so no ring length is read per step.
+// beta_in -> beta_out, of the channels whose `channels` entry is 1: sources
+// stay at 1, the others take the mean of themselves and their neighbours
+// (duplicates, with no ring, keep theirs). With active = 1 only the
+// vertices in reach of this step do it (the others are 0 and have no
+// neighbour that is not, so the mean would leave them 0); a vertex left
+// non-zero in a channel that `next_channels` (the next step's) diffuses
+// puts the vertices whose rows list it in reach of the next step.
 __kernel void track_beta_diffuse(const uint vertex_count,
                                  __global const uchar* states,
                                  __global const uint* near_offsets,
                                  __global const int* near_neighbours,
                                  __global const float2* beta_in,
                                  __global float2* beta_out,
-                                 const float2 channels) {
+                                 const float2 channels, const uint active,
+                                 const uint step, const float2 next_channels,
+                                 __global const uint* reverse_offsets,
+                                 __global const int* reverse_neighbours,
+                                 __global uchar* reach) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
+  if (active && reach[v] > step) return;
   const float2 b = beta_in[v];
   float2 sum = b;
   float count = 1.0f;
@@ -458,13 +518,20 @@ __kernel void track_beta_diffuse(const uint vertex_count,
   if (states[v] == TRACK_CONTACT) out.x = 1.0f;
   if (states[v] == TRACK_CREASE) out.y = 1.0f;
   beta_out[v] = out;
+  if (active && ((out.x != 0.0f && next_channels.x != 0.0f) ||
+                 (out.y != 0.0f && next_channels.y != 0.0f)))
+    push_reach(v, step + 1, reverse_offsets, reverse_neighbours, reach);
 }
 
 // One Laplacian step over the neighbours within the smoothing radius (the
 // filtered rows of track_beta_diffuse), positions_in -> positions_out: full,
 // weighted by beta (eq. 7), and tangential (normal to the whole one-ring)
 // weighted by (1 - beta) gamma; `weights` (0 or 1 each) switches the two
-// off once their steps are done.
+// off once their steps are done. Every vertex is written when
+// active_reach is 0; otherwise only those in reach of diffusion step
+// active_reach (the others have beta = gamma = 0), and with
+// `copy_marching` (the first step) the vertices still marching too: the
+// only ones the rounds leave different in the two buffers (track_relax).
 __kernel void track_smooth(const uint vertex_count,
                            __global const uchar* rules,
                            __global const uchar* kinds,
@@ -475,9 +542,15 @@ __kernel void track_smooth(const uint vertex_count,
                            __global const float2* beta,
                            __global const float* positions_in,
                            __global float* positions_out,
-                           const float2 weights) {
+                           const float2 weights, const uint active_reach,
+                           __global const uchar* reach,
+                           __global const uchar* states,
+                           const uint copy_marching) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
+  if (active_reach > 0 && reach[v] > active_reach &&
+      !(copy_marching && states[v] == TRACK_MARCHING))
+    return;
   const float3 x = vload3(v, positions_in);
   float3 out = x;
   const float2 bc = beta[v] * weights;

@@ -1130,24 +1130,28 @@ TEST(ImplicitSkinner, CharactersShareOneContext) {
 }
 
 // The speed switches (neighbourhoods, march order, occupied cells, value
-// bounds, lane tests) change no result: the same frame with each off, on
-// the CPU reference and on OpenCL.
+// bounds, lane tests, active vertices) change no result: the same frame
+// with each off, on the CPU reference and on OpenCL. `base`: the tracking
+// options the switches are turned in.
 void checkSpeedSwitches(const Rig& rig,
                         std::shared_ptr<const ImplicitFields> fields,
-                        const TransformList& pose) {
+                        const TransformList& pose,
+                        const SurfaceTrackingOptions& base = {}) {
   struct Switches {
     bool neighbourhoods = true, march_order = true, cells = true, bounds = true;
     int neighbourhood_cells = 0;  // the device's choice (PoCL: 4)
-    bool lanes = true;
+    bool lanes = true, active = true;
   };
   auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
+    options.tracking = base;
     options.tracking.field_neighbourhoods = on.neighbourhoods;
     options.tracking.neighbourhood_cells = on.neighbourhood_cells;
     options.tracking.march_order = on.march_order;
     options.tracking.occupied_cells = on.cells;
     options.tracking.value_bounds = on.bounds;
     options.tracking.lane_tests = on.lanes;
+    options.tracking.active_vertices = on.active;
     CpuImplicitSkinner cpu(rig, fields, options);
     cpu.run(pose);
     ImplicitSkinner device(test::sharedContext(), rig, fields, options);
@@ -1166,14 +1170,17 @@ void checkSpeedSwitches(const Rig& rig,
         Switches{true, true, false, false, 1},
         Switches{true, true, true, true, 0, false},
         Switches{true, true, true, true, 1, false},
-        Switches{true, true, true, false, 7, false}}) {
+        Switches{true, true, true, false, 7, false},
+        Switches{true, true, true, true, 0, true, false},
+        Switches{true, true, true, true, 1, false, false}}) {
     SCOPED_TRACE(std::string("neighbourhoods ") +
                  (on.neighbourhoods ? "on" : "off") + ", march order " +
                  (on.march_order ? "on" : "off") + ", occupied cells " +
                  (on.cells ? "on" : "off") + ", value bounds " +
                  (on.bounds ? "on" : "off") + ", neighbourhood cells " +
                  std::to_string(on.neighbourhood_cells) + ", lane tests " +
-                 (on.lanes ? "on" : "off"));
+                 (on.lanes ? "on" : "off") + ", active vertices " +
+                 (on.active ? "on" : "off"));
     const auto other = frames(on);
     const test::RowMismatch cpu =
         test::largestRowDistance(other.first, all.first);
@@ -1200,6 +1207,72 @@ TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnProceduralRigs) {
         buildImplicitFields(arm, options));
     for (const TransformList& pose : clipPoses(arm, 4))
       checkSpeedSwitches(arm, fields, pose);
+  }
+}
+
+// Active vertices with other diffusion and step counts than the paper's:
+// beta diffusing longer than gamma, no diffusion, and more diffusion steps
+// than the reach counter holds (it saturates: every vertex then does the
+// later steps); odd numbers of rounds and steps (the result in the other
+// buffer) with untracked vertices among the tracked ones (iso value 0:
+// never relaxed, read as neighbours). The same positions, beta and gamma
+// as with every vertex in every launch; the bent cylinder's contacts and
+// creases give both channels sources, so the diffusion reaches vertices
+// that are neither.
+TEST(ImplicitSkinner, ActiveVerticesChangeNoResultWithOtherSmoothingCounts) {
+  const BentCylinder& c = bentCylinder();
+  const TransformList pose = bendAt(c.rig, c.joint, 135);
+  struct Counts {
+    int beta_diffusion, smoothing_steps, crease_diffusion, crease_steps;
+    int rounds = 8, untracked_every = 0;
+  };
+  for (const Counts& n : {Counts{7, 3, 2, 5}, Counts{0, 4, 0, 6},
+                          Counts{260, 2, 258, 3}, Counts{3, 0, 0, 0},
+                          Counts{1, 8, 5, 9, 3, 7}, Counts{0, 3, 0, 0, 1, 5}}) {
+    SCOPED_TRACE("diffusion " + std::to_string(n.beta_diffusion) + "/" +
+                 std::to_string(n.crease_diffusion) + ", steps " +
+                 std::to_string(n.smoothing_steps) + "/" +
+                 std::to_string(n.crease_steps) + ", rounds " +
+                 std::to_string(n.rounds) + ", untracked every " +
+                 std::to_string(n.untracked_every));
+    auto fields = c.fields;
+    if (n.untracked_every > 0) {
+      auto edited = std::make_shared<ImplicitFields>(*c.fields);
+      for (size_t v = 0; v < edited->iso_values.size(); v += n.untracked_every)
+        edited->iso_values[v] = 0.f;
+      fields = edited;
+    }
+    auto frame = [&](bool active, Matrix3Xf& positions,
+                     std::vector<float>& beta) {
+      ImplicitSkinnerOptions options;
+      options.tracking.rounds = n.rounds;
+      options.tracking.beta_diffusion = n.beta_diffusion;
+      options.tracking.smoothing_steps = n.smoothing_steps;
+      options.tracking.crease_diffusion = n.crease_diffusion;
+      options.tracking.crease_steps = n.crease_steps;
+      options.tracking.active_vertices = active;
+      ImplicitSkinner skinner(test::sharedContext(), c.rig, fields, options);
+      skinner.run(pose);
+      skinner.readPositions(positions);
+      skinner.tracking().readBeta(beta);
+    };
+    Matrix3Xf on, off;
+    std::vector<float> beta_on, beta_off;
+    frame(true, on, beta_on);
+    frame(false, off, beta_off);
+    const test::RowMismatch mismatch = test::largestRowDistance(on, off);
+    EXPECT_EQ(mismatch.distance, 0.f) << "vertex " << mismatch.row;
+    ASSERT_EQ(beta_on.size(), beta_off.size());
+    int diffused[2] = {0, 0};  // strictly between 0 and 1: reached
+    for (size_t i = 0; i < beta_on.size(); ++i) {
+      ASSERT_EQ(beta_on[i], beta_off[i])
+          << (i % 2 ? "gamma" : "beta") << " of vertex " << i / 2;
+      diffused[i % 2] += beta_on[i] > 0.f && beta_on[i] < 1.f;
+    }
+    // (with the untracked holes the cylinder makes creases, no contact)
+    if (n.beta_diffusion > 0 && n.untracked_every == 0)
+      EXPECT_GT(diffused[0], 0);
+    if (n.crease_diffusion > 0) EXPECT_GT(diffused[1], 0);
   }
 }
 

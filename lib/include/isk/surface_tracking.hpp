@@ -136,6 +136,11 @@ struct SurfaceTrackingOptions {
   // PoCL the projection 1.09-1.21x faster (README, Benchmarks); other
   // devices keep the loop (a GPU runs vector types lane by lane).
   bool lane_tests = true;
+  // Speed only, OpenCL: the relaxation launches skip the stopped vertices,
+  // the diffusion and Laplacian launches the vertices out of reach of every
+  // contact and crease vertex (each step pushes its reach to the vertices
+  // whose rows list it), instead of copying them; the same result.
+  bool active_vertices = true;
 
   // Names the first bad parameter and its valid range.
   Validation validate() const;

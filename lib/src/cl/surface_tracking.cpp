@@ -198,6 +198,20 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       }
       near_offsets_ = uploadReadOnly(*context_, near_offsets, &bytes_);
       near_neighbours_ = uploadReadOnly(*context_, near, &bytes_);
+      // Their transpose: the vertices whose rows list each vertex, where
+      // a contact or crease vertex pushes its reach (active vertices).
+      std::vector<uint32_t> reverse_offsets(vertex_count_ + 1, 0);
+      for (int w : near) ++reverse_offsets[w + 1];
+      for (int k = 0; k < vertex_count_; ++k)
+        reverse_offsets[k + 1] += reverse_offsets[k];
+      std::vector<int> reverse(near.size());
+      std::vector<uint32_t> fill(reverse_offsets.begin(),
+                                 reverse_offsets.end() - 1);
+      for (int k = 0; k < vertex_count_; ++k)
+        for (uint32_t i = near_offsets[k]; i < near_offsets[k + 1]; ++i)
+          reverse[fill[near[i]]++] = k;
+      reverse_offsets_ = uploadReadOnly(*context_, reverse_offsets, &bytes_);
+      reverse_neighbours_ = uploadReadOnly(*context_, reverse, &bytes_);
     }
     normal_offsets_ =
         uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
@@ -216,12 +230,13 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     prev_gradients_ = rw(n * 4 * sizeof(float));
     relax_frames_ = rw(n * 4 * sizeof(float));
     for (auto& b : beta_) b = rw(2 * n * sizeof(float));
+    reach_ = rw(n);
     std::vector<uint8_t> kinds(mesh.rings.kinds.size());
     for (size_t k = 0; k < kinds.size(); ++k)
       kinds[k] = static_cast<uint8_t>(mesh.rings.kinds[order_[k]]);
     kinds_ = uploadReadOnly(*context_, kinds, &bytes_);
     bytes_ +=
-        3 * floats3 + n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
+        3 * floats3 + 2 * n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking: uploading the tracking mesh to " +
                         context_->info().describe());
@@ -432,6 +447,9 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     begin_.setArg(6, prev_gradients_);
     begin_.setArg(7, relax_frames_);
     begin_.setArg(8, begin_source_);
+    begin_.setArg(9, positions_[1 - current_]);
+    begin_.setArg(10, reach_);
+    beta_current_ = 0;
     user_order_ = false;
     launch(begin_, kProjection);
     begun_ = true;
@@ -468,6 +486,7 @@ void ClSurfaceTracking::project(int steps) {
     if (!options_.occupied_cells) project_.setArg(23, every_cell_);
     fields_->setCompositionArgs(project_, 24);
     project_.setArg(30, relax_frames_);
+    project_.setArg(31, positions_[1 - current_]);
     launch(project_, kProjection, march_count_);
   } catch (const cl::Error& e) {
     throwClError(
@@ -487,6 +506,7 @@ void ClSurfaceTracking::relax() {
     relax_.setArg(6, ring_offsets_);
     relax_.setArg(7, ring_neighbours_);
     relax_.setArg(8, ring_weights_);
+    relax_.setArg(9, static_cast<cl_uint>(options_.active_vertices ? 1 : 0));
     launch(relax_, kRelaxation);
     current_ = 1 - current_;
   } catch (const cl::Error& e) {
@@ -499,34 +519,45 @@ void ClSurfaceTracking::smooth() {
   checkBegun("smooth");
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
+    const cl_uint active = options_.active_vertices ? 1 : 0;
     beta_init_.setArg(0, n);
     beta_init_.setArg(1, states_);
     beta_init_.setArg(2, beta_[0]);
+    beta_init_.setArg(3, beta_[1]);
+    beta_init_.setArg(4, reverse_offsets_);
+    beta_init_.setArg(5, reverse_neighbours_);
+    beta_init_.setArg(6, reach_);
     launch(beta_init_, kSmoothing);
     int b = 0;
     const int diffusions =
         std::max(options_.beta_diffusion, options_.crease_diffusion);
+    auto channels = [&](int k) {  // of diffusion k (0-based)
+      return cl_float2{{k < options_.beta_diffusion ? 1.f : 0.f,
+                        k < options_.crease_diffusion ? 1.f : 0.f}};
+    };
     for (int k = 0; k < diffusions; ++k) {
-      beta_diffuse_.setArg(
-          6, cl_float2{{k < options_.beta_diffusion ? 1.f : 0.f,
-                        k < options_.crease_diffusion ? 1.f : 0.f}});
       beta_diffuse_.setArg(0, n);
       beta_diffuse_.setArg(1, states_);
       beta_diffuse_.setArg(2, near_offsets_);
       beta_diffuse_.setArg(3, near_neighbours_);
       beta_diffuse_.setArg(4, beta_[b]);
       beta_diffuse_.setArg(5, beta_[1 - b]);
+      beta_diffuse_.setArg(6, channels(k));
+      beta_diffuse_.setArg(7, active);
+      beta_diffuse_.setArg(8, static_cast<cl_uint>(k + 1));
+      beta_diffuse_.setArg(9, channels(k + 1));
+      beta_diffuse_.setArg(10, reverse_offsets_);
+      beta_diffuse_.setArg(11, reverse_neighbours_);
+      beta_diffuse_.setArg(12, reach_);
       launch(beta_diffuse_, kSmoothing);
       b = 1 - b;
     }
-    if (b != 0) {  // readBeta reads beta_[0]
-      context_->queue().enqueueCopyBuffer(beta_[1], beta_[0], 0, 0,
-                                          2 * vertex_count_ * sizeof(float));
-    }
+    beta_current_ = b;  // readBeta
+    // Beta and gamma are 0 beyond the reach of the last diffusion step.
+    const cl_uint smoothed_reach =
+        static_cast<cl_uint>(std::max(diffusions, 1));
     const int steps = std::max(options_.smoothing_steps, options_.crease_steps);
     for (int k = 0; k < steps; ++k) {
-      smooth_.setArg(10, cl_float2{{k < options_.smoothing_steps ? 1.f : 0.f,
-                                    k < options_.crease_steps ? 1.f : 0.f}});
       smooth_.setArg(0, n);
       smooth_.setArg(1, rules_);
       smooth_.setArg(2, kinds_);
@@ -534,9 +565,17 @@ void ClSurfaceTracking::smooth() {
       smooth_.setArg(4, ring_neighbours_);
       smooth_.setArg(5, near_offsets_);
       smooth_.setArg(6, near_neighbours_);
-      smooth_.setArg(7, beta_[0]);
+      smooth_.setArg(7, beta_[b]);
       smooth_.setArg(8, positions_[current_]);
       smooth_.setArg(9, positions_[1 - current_]);
+      smooth_.setArg(10, cl_float2{{k < options_.smoothing_steps ? 1.f : 0.f,
+                                    k < options_.crease_steps ? 1.f : 0.f}});
+      smooth_.setArg(11, active ? smoothed_reach : cl_uint{0});
+      smooth_.setArg(12, reach_);
+      // The rounds leave the vertices still marching different in the two
+      // buffers: the first step copies them.
+      smooth_.setArg(13, states_);
+      smooth_.setArg(14, static_cast<cl_uint>(k == 0 ? 1 : 0));
       launch(smooth_, kSmoothing);
       current_ = 1 - current_;
     }
@@ -604,9 +643,10 @@ void ClSurfaceTracking::setState(const Matrix3Xf& positions,
   try {
     const cl::CommandQueue& queue = context_->queue();
     const Matrix3Xf device_positions = toDevice(positions);
-    queue.enqueueWriteBuffer(positions_[current_], CL_TRUE, 0,
-                             device_positions.size() * sizeof(float),
-                             device_positions.data());
+    for (const cl::Buffer& buffer : positions_)  // both: see track_relax
+      queue.enqueueWriteBuffer(buffer, CL_TRUE, 0,
+                               device_positions.size() * sizeof(float),
+                               device_positions.data());
     std::vector<TrackState> device_states(states.size());
     for (size_t k = 0; k < states.size(); ++k)
       device_states[k] = states[order_[k]];
@@ -659,7 +699,7 @@ void ClSurfaceTracking::readStates(std::vector<TrackState>& out) {
 
 void ClSurfaceTracking::readBeta(std::vector<float>& out) {
   std::vector<float> device(2 * static_cast<size_t>(vertex_count_));
-  readFloats(beta_[0], device.data(), device.size() * sizeof(float),
+  readFloats(beta_[beta_current_], device.data(), device.size() * sizeof(float),
              "readBeta");
   out.resize(device.size());
   for (int k = 0; k < vertex_count_; ++k) {

@@ -134,6 +134,9 @@ class ClSurfaceTracking {
   // The one-rings filtered to the neighbours within each vertex's smoothing
   // radius (rest distance), in ring order (diffusion, Laplacian steps).
   cl::Buffer near_offsets_, near_neighbours_;
+  // Their transpose (active vertices: where a vertex pushes its reach),
+  // and per vertex the first diffusion step it is in reach of (uchar).
+  cl::Buffer reverse_offsets_, reverse_neighbours_, reach_;
   // trackingLengths per vertex: (max step, min gradient).
   cl::Buffer step_limits_;
   // The device's vertex order (see the constructor): order_[k] is the
@@ -161,6 +164,7 @@ class ClSurfaceTracking {
   cl::Buffer positions_[2];
   int current_ = 0;
   cl::Buffer states_, prev_gradients_, relax_frames_, beta_[2], normals_;
+  int beta_current_ = 0;         // beta_[beta_current_]: the last diffusion's
   cl::Buffer fallback_normals_;  // begin's skinned normals (a handle)
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
