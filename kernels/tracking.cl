@@ -567,10 +567,15 @@ __kernel void track_smooth(const uint vertex_count,
       const uint begin = ring_offsets[v];
       const uint end = ring_offsets[v + 1];
       float3 normal = (float3)(0.0f);
+      // Each neighbour loaded once: the next edge starts where this ends.
+      const float3 first = vload3(ring_neighbours[begin], positions_in) - x;
+      float3 a = first;
       for (uint i = begin; i < end; ++i) {
-        const uint j = i + 1 < end ? i + 1 : begin;
-        normal += cross(vload3(ring_neighbours[i], positions_in) - x,
-                        vload3(ring_neighbours[j], positions_in) - x);
+        const float3 b =
+            i + 1 < end ? vload3(ring_neighbours[i + 1], positions_in) - x
+                        : first;
+        normal += cross(a, b);
+        a = b;
       }
       const float length =
           sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
