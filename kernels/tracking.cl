@@ -442,7 +442,7 @@ __kernel void track_relax(const uint vertex_count,
 // Marks v and the vertices whose rows list it (reverse near rows) as in
 // reach from diffusion step `step` on: pushed, so that no vertex reads its
 // neighbours to learn it. Concurrent writers store the same value.
-inline void push_reach(const uint v, const uint step,
+ISK_INLINE void push_reach(const uint v, const uint step,
                        __global const uint* reverse_offsets,
                        __global const int* reverse_neighbours,
                        __global uchar* reach) {
