@@ -167,8 +167,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     const int3 c = min(convert_int3_rtz(home_u * ((float)cells /
                                                  (float)(resolution - 1))),
                        (int3)(cells - 1));
-    const int cell =
-        home * cells * cells * cells + c.x + cells * (c.y + cells * c.z);
+    const int local_cell = c.x + cells * (c.y + cells * c.z);
 #if ISK_LANE_TESTS
     // The listed fields' sphere and grid tests eight at a time: the home
     // field's neighbourhood in chunks of 8 lanes (lane_params, the list's
@@ -177,7 +176,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     const int chunks = lane_offsets[home + 1] - first_chunk;
     __global const uchar* masks =
         lane_masks + (size_t)first_chunk * (size_t)(cells * cells * cells) +
-        (size_t)((c.x + cells * (c.y + cells * c.z)) * chunks);
+        (size_t)(local_cell * chunks);
     const float last = (float)(resolution - 1);
     float lane_u[24];
     for (int k = 0; k < chunks; ++k) {
@@ -218,6 +217,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
       }
     }
 #else
+    const int cell = home * cells * cells * cells + local_cell;
     const int end = neighbour_offsets[cell + 1];
     for (int n = neighbour_offsets[cell]; n < end; ++n) {
       const int entry = neighbour_entries[n];
