@@ -342,21 +342,64 @@ TEST(VertexNormals, IsolatedAndDegenerateVerticesTakeTheFallback) {
   EXPECT_EQ(out.row(4), fallback.row(4));
 }
 
-// The corners the OpenCL normals kernel reads: each adjacency entry's
-// triangle, its corners in the triangle's order (the cross product's
-// sign), on a fan whose vertex 0 is in every triangle.
-TEST(VertexTriangleAdjacency, CornersAreEachEntrysTriangleInOrder) {
-  TriangleMatrix triangles(4, 3);
-  triangles << 0, 1, 2, 0, 2, 3, 3, 4, 0, 4, 1, 0;
-  const auto adjacency = VertexTriangleAdjacency::build(triangles, 6);
-  const std::vector<int32_t> corners = adjacency.corners(triangles);
-  ASSERT_EQ(corners.size(), 3 * adjacency.triangles.size());
+// Area weighting and winding on a fan whose vertex 0 is in every triangle
+// (one of them, 2 -> 3 -> 0, folded down out of the plane) and whose
+// vertex 5 is in none: each vertex's normal is the sum of the cross
+// products (b - a) x (c - a) of its triangles, normalized, on both paths
+// (the kernels take each triangle's product once, then sum per vertex).
+TEST(VertexNormals, EachVertexSumsItsTrianglesCrossProductsOnBothPaths) {
+  Mesh mesh;
+  mesh.positions.resize(6, 3);
+  mesh.positions << 0, 0, 0, 2, 0, 0, 0, 1, 0, -1, 0, -1, 0, -3, 0, 5, 5, 5;
+  mesh.normals.resize(6, 3);
+  mesh.normals.setZero();
+  mesh.normals.col(0).setOnes();  // the fallback of vertex 5
+  mesh.triangles.resize(4, 3);
+  mesh.triangles << 0, 1, 2, 2, 3, 0, 3, 4, 0, 4, 1, 0;
+  const auto adjacency = VertexTriangleAdjacency::build(mesh.triangles, 6);
   ASSERT_EQ(adjacency.offsets[1] - adjacency.offsets[0], 4u);  // vertex 0
-  for (size_t i = 0; i < adjacency.triangles.size(); ++i)
-    for (int k = 0; k < 3; ++k)
-      ASSERT_EQ(corners[3 * i + k], triangles(adjacency.triangles[i], k))
-          << "entry " << i << ", corner " << k;
-  EXPECT_EQ(adjacency.offsets[6], adjacency.offsets[5]);  // vertex 5: none
+  ASSERT_EQ(adjacency.offsets[6], adjacency.offsets[5]);       // vertex 5
+  Matrix3Xf expected(6, 3);
+  for (int v = 0; v < 6; ++v) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int t = 0; t < 4; ++t) {
+      if ((mesh.triangles.row(t).array() != v).all()) continue;
+      const Eigen::Vector3d a =
+          mesh.positions.row(mesh.triangles(t, 0)).transpose().cast<double>();
+      const Eigen::Vector3d b =
+          mesh.positions.row(mesh.triangles(t, 1)).transpose().cast<double>();
+      const Eigen::Vector3d c =
+          mesh.positions.row(mesh.triangles(t, 2)).transpose().cast<double>();
+      sum += (b - a).cross(c - a);
+    }
+    if (v == 5)
+      expected.row(v) = mesh.normals.row(5);
+    else
+      expected.row(v) = sum.normalized().cast<float>().transpose();
+  }
+  // Vertex 0: (0, 0, 2) + (-1, 0, 1) + (-3, 0, 3) + (0, 0, 6), the folded
+  // triangles tilting it towards -x.
+  EXPECT_NEAR(expected(0, 0), -4.f / std::sqrt(160.f), 1e-6f);
+  EXPECT_NEAR(expected(0, 2), 12.f / std::sqrt(160.f), 1e-6f);
+  Matrix3Xf reference;
+  VertexNormalsJob job{&mesh.positions, &mesh.triangles, &adjacency,
+                       &mesh.normals, &reference};
+  job.run();
+  const SkinWeights weights = SkinWeights::fromLists(
+      std::vector<std::vector<std::pair<int, float>>>(6, {{0, 1.f}}));
+  ClSkinning device(test::sharedContext(), mesh, weights, 1);
+  device.run(SkinningMethod::kDualQuaternion,
+             {Eigen::Affine3f(Eigen::Affine3f::Identity())}, true);
+  Matrix3Xf device_normals;
+  device.readNormals(device_normals);
+  for (int v = 0; v < 6; ++v) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(reference(v, k), expected(v, k), 1e-6f)
+          << "reference, vertex " << v << ", axis " << k;
+      EXPECT_NEAR(device_normals(v, k), expected(v, k), 1e-6f)
+          << "device, vertex " << v << ", axis " << k;
+    }
+  }
 }
 
 // A triangle whose cross product passes FLT_MAX (a joint scaled by 1e20):

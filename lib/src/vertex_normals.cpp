@@ -25,15 +25,6 @@ VertexTriangleAdjacency VertexTriangleAdjacency::build(
   return adjacency;
 }
 
-std::vector<int32_t> VertexTriangleAdjacency::corners(
-    const TriangleMatrix& triangles) const {
-  std::vector<int32_t> out;
-  out.reserve(3 * this->triangles.size());
-  for (const uint32_t t : this->triangles)
-    for (int k = 0; k < 3; ++k) out.push_back(triangles(t, k));
-  return out;
-}
-
 Validation VertexNormalsJob::validate() const {
   if (!positions || !triangles || !adjacency || !fallback_normals ||
       !out_normals) {
@@ -64,20 +55,24 @@ Validation VertexNormalsJob::validate() const {
 void VertexNormalsJob::run() const {
   validate().throwIfFailed("VertexNormalsJob");
   const int n = static_cast<int>(positions->rows());
+  // Each triangle's cross product once, then the sums in adjacency order:
+  // the kernels' two launches, and the same sums as one product per corner.
+  const int triangle_count = static_cast<int>(triangles->rows());
+  Matrix3Xf triangle_normals(triangle_count, 3);
+  for (int t = 0; t < triangle_count; ++t) {
+    const Eigen::Vector3f a =
+        positions->row(triangles->coeff(t, 0)).transpose();
+    const Eigen::Vector3f b =
+        positions->row(triangles->coeff(t, 1)).transpose();
+    const Eigen::Vector3f c =
+        positions->row(triangles->coeff(t, 2)).transpose();
+    triangle_normals.row(t) = (b - a).cross(c - a).transpose();
+  }
   out_normals->resize(n, 3);
   for (int v = 0; v < n; ++v) {
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-    for (uint32_t i = adjacency->offsets[v]; i < adjacency->offsets[v + 1];
-         ++i) {
-      const uint32_t t = adjacency->triangles[i];
-      const Eigen::Vector3f a =
-          positions->row(triangles->coeff(t, 0)).transpose();
-      const Eigen::Vector3f b =
-          positions->row(triangles->coeff(t, 1)).transpose();
-      const Eigen::Vector3f c =
-          positions->row(triangles->coeff(t, 2)).transpose();
-      sum += (b - a).cross(c - a);
-    }
+    for (uint32_t i = adjacency->offsets[v]; i < adjacency->offsets[v + 1]; ++i)
+      sum += triangle_normals.row(adjacency->triangles[i]).transpose();
     const float len = std::sqrt(sum.dot(sum));
     if (len > FLT_MIN && std::isfinite(len)) {  // overflow: the fallback
       out_normals->row(v) = sum / len;

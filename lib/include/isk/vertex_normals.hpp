@@ -1,10 +1,10 @@
 // Area-weighted vertex normals of a triangle mesh, CPU reference of
 // kernels/normals.cl.
 //
-// Each vertex sums the (unnormalized) cross products of its incident
-// triangles, read through a vertex-to-triangle adjacency built once, and
-// normalizes. A vertex whose sum vanishes (no triangle, or only degenerate
-// ones) takes its fallback normal instead.
+// Each triangle's (unnormalized) cross product is taken once; each vertex
+// sums those of its incident triangles, read through a vertex-to-triangle
+// adjacency built once, and normalizes. A vertex whose sum vanishes (no
+// triangle, or only degenerate ones) takes its fallback normal instead.
 #pragma once
 
 #include <cstdint>
@@ -25,13 +25,6 @@ struct VertexTriangleAdjacency {
   // long as the rows stay in order (the tracking mesh welds seams so).
   static VertexTriangleAdjacency build(const TriangleMatrix& triangles,
                                        int vertex_count);
-
-  // The corners of each entry's triangle, in the triangle's order: 3 *
-  // #entries vertex indices, row i of `triangles` for entry i's triangle.
-  // kernels/normals.cl reads these instead of the triangle indices, one
-  // dependent load fewer per triangle (about 1.6x on PoCL). `triangles`
-  // must be the matrix the adjacency was built for (not checked).
-  std::vector<int32_t> corners(const TriangleMatrix& triangles) const;
 };
 
 // Area-weighted normals of one frame (single thread). The pointed-to inputs

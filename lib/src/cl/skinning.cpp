@@ -43,6 +43,7 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
     cl::Program normals = context_->program("normals");
     lbs_kernel_ = cl::Kernel(skinning, "skin_lbs");
     dqs_kernel_ = cl::Kernel(skinning, "skin_dqs");
+    triangle_normals_kernel_ = cl::Kernel(normals, "triangle_normals");
     normals_kernel_ = cl::Kernel(normals, "vertex_normals");
     const float* p = mesh.positions.data();
     const float* n = mesh.normals.data();
@@ -59,8 +60,17 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
         uploadReadOnly(c, weights.weights, "influence weights");
     adjacency_offsets_ =
         uploadReadOnly(c, adjacency.offsets, "adjacency offsets");
-    adjacency_corners_ = uploadReadOnly(c, adjacency.corners(mesh.triangles),
-                                        "adjacency corners");
+    adjacency_triangles_ =
+        uploadReadOnly(c, adjacency.triangles, "adjacency triangles");
+    triangle_count_ = static_cast<int>(mesh.triangles.rows());
+    const int* t = mesh.triangles.data();  // row-major: corners in order
+    triangles_ = uploadReadOnly(
+        c, std::vector<int>(t, t + 3 * static_cast<size_t>(triangle_count_)),
+        "triangles");
+    triangle_normals_ = c.createBuffer(
+        CL_MEM_READ_WRITE,
+        3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1)),
+        nullptr, "ClSkinning triangle normals");
     // Large enough for either layout (LBS 12 floats per joint, DQS 8).
     joint_transforms_ = c.createBuffer(
         CL_MEM_READ_ONLY, 12 * sizeof(float) * std::max(joint_count, 1),
@@ -104,8 +114,10 @@ void ClSkinning::collectTimes() {
     (pending_normals_ ? normals_event_ : skin_event_).wait();
     times_.upload_ms = eventMilliseconds(upload_event_);
     times_.skinning_ms = eventMilliseconds(skin_event_);
-    times_.normals_ms =
-        pending_normals_ ? eventMilliseconds(normals_event_) : 0.0;
+    times_.normals_ms = pending_normals_
+                            ? eventMilliseconds(triangle_normals_event_) +
+                                  eventMilliseconds(normals_event_)
+                            : 0.0;
   } catch (const cl::Error& e) {
     throwClError(e, "ClSkinning: waiting for the skinning on " +
                         context_->info().describe());
@@ -138,7 +150,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
   times_ = SkinningStageTimes();
   try {
     auto start = std::chrono::steady_clock::now();
-    cl::Event upload, skin, normals;
+    cl::Event upload, skin, triangle_normals, normals;
     // Without profiling, each stage is waited for and timed on the host;
     // with it, the queue runs unbroken and the events give the times.
     queue.enqueueWriteBuffer(joint_transforms_, profiling ? CL_FALSE : CL_TRUE,
@@ -167,13 +179,21 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
       times_.skinning_ms = detail::millisecondsSince(start);
     }
     if (recompute_normals) {
+      triangle_normals_kernel_.setArg(0, static_cast<cl_uint>(triangle_count_));
+      triangle_normals_kernel_.setArg(1, out_positions_);
+      triangle_normals_kernel_.setArg(2, triangles_);
+      triangle_normals_kernel_.setArg(3, triangle_normals_);
       normals_kernel_.setArg(0, n);
-      normals_kernel_.setArg(1, out_positions_);
+      normals_kernel_.setArg(1, triangle_normals_);
       normals_kernel_.setArg(2, adjacency_offsets_);
-      normals_kernel_.setArg(3, adjacency_corners_);
+      normals_kernel_.setArg(3, adjacency_triangles_);
       normals_kernel_.setArg(4, skinned_normals_);
       normals_kernel_.setArg(5, out_normals_);
       start = std::chrono::steady_clock::now();
+      queue.enqueueNDRangeKernel(
+          triangle_normals_kernel_, cl::NullRange,
+          cl::NDRange(roundUp(std::max(triangle_count_, 1), 64)), cl::NullRange,
+          nullptr, &triangle_normals);
       queue.enqueueNDRangeKernel(normals_kernel_, cl::NullRange, global,
                                  cl::NullRange, nullptr, &normals);
       if (!profiling) {
@@ -184,6 +204,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
     if (profiling) {
       upload_event_ = upload;
       skin_event_ = skin;
+      triangle_normals_event_ = triangle_normals;
       normals_event_ = normals;
       pending_ = true;
       pending_normals_ = recompute_normals;

@@ -86,6 +86,8 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     beta_diffuse_ = cl::Kernel(tracking, "track_beta_diffuse");
     smooth_ = cl::Kernel(tracking, "track_smooth");
     copy_duplicates_ = cl::Kernel(tracking, "track_copy_duplicates");
+    triangle_normals_kernel_ =
+        cl::Kernel(context_->program("normals"), "triangle_normals");
     normals_kernel_ =
         cl::Kernel(context_->program("normals"), "vertex_normals");
 
@@ -215,8 +217,12 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     }
     normal_offsets_ =
         uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
-    normal_corners_ = uploadReadOnly(
-        *context_, mesh.normal_adjacency.corners(mesh.triangles), &bytes_);
+    normal_triangles_ =
+        uploadReadOnly(*context_, mesh.normal_adjacency.triangles, &bytes_);
+    triangle_count_ = static_cast<int>(mesh.triangles.rows());
+    triangles_ =
+        uploadReadOnly(*context_, mesh.triangles.data(),
+                       3 * static_cast<size_t>(triangle_count_), &bytes_);
     const size_t floats3 = 3 * n * sizeof(float);
     const std::string per_vertex = "ClSurfaceTracking: per-vertex state of " +
                                    std::to_string(n) + " vertices";
@@ -231,12 +237,15 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     relax_frames_ = rw(n * 4 * sizeof(float));
     for (auto& b : beta_) b = rw(2 * n * sizeof(float));
     reach_ = rw(n);
+    const size_t triangle_floats3 =
+        3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
+    triangle_normals_ = rw(triangle_floats3);
     std::vector<uint8_t> kinds(mesh.rings.kinds.size());
     for (size_t k = 0; k < kinds.size(); ++k)
       kinds[k] = static_cast<uint8_t>(mesh.rings.kinds[order_[k]]);
     kinds_ = uploadReadOnly(*context_, kinds, &bytes_);
-    bytes_ +=
-        3 * floats3 + 2 * n + 2 * n * 4 * sizeof(float) + 4 * n * sizeof(float);
+    bytes_ += 3 * floats3 + 2 * n + 2 * n * 4 * sizeof(float) +
+              4 * n * sizeof(float) + triangle_floats3;
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking: uploading the tracking mesh to " +
                         context_->info().describe());
@@ -597,10 +606,15 @@ void ClSurfaceTracking::finish() {
     launch(copy_duplicates_, kNormals);
     current_ = 1 - current_;
     user_order_ = true;
+    triangle_normals_kernel_.setArg(0, static_cast<cl_uint>(triangle_count_));
+    triangle_normals_kernel_.setArg(1, positions_[current_]);
+    triangle_normals_kernel_.setArg(2, triangles_);
+    triangle_normals_kernel_.setArg(3, triangle_normals_);
+    launch(triangle_normals_kernel_, kNormals, triangle_count_);
     normals_kernel_.setArg(0, n);
-    normals_kernel_.setArg(1, positions_[current_]);
+    normals_kernel_.setArg(1, triangle_normals_);
     normals_kernel_.setArg(2, normal_offsets_);
-    normals_kernel_.setArg(3, normal_corners_);
+    normals_kernel_.setArg(3, normal_triangles_);
     normals_kernel_.setArg(4, fallback_normals_);
     normals_kernel_.setArg(5, normals_);
     launch(normals_kernel_, kNormals);

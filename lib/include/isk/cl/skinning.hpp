@@ -73,17 +73,21 @@ class ClSkinning {
   std::shared_ptr<ClContext> context_;
   int vertex_count_ = 0;
   int joint_count_ = 0;
-  cl::Kernel lbs_kernel_, dqs_kernel_, normals_kernel_;
+  cl::Kernel lbs_kernel_, dqs_kernel_, triangle_normals_kernel_,
+      normals_kernel_;
   cl::Buffer rest_positions_, rest_normals_;
   cl::Buffer influence_offsets_, influence_joints_, influence_weights_;
-  // Vertex -> triangle rows, each entry its triangle's 3 corners
-  // (VertexTriangleAdjacency::corners).
-  cl::Buffer adjacency_offsets_, adjacency_corners_;
+  // The triangles (#F by 3), their cross products of the frame (#F by 3
+  // floats) and the vertex -> triangle rows (VertexTriangleAdjacency).
+  int triangle_count_ = 0;
+  cl::Buffer triangles_, triangle_normals_;
+  cl::Buffer adjacency_offsets_, adjacency_triangles_;
   cl::Buffer joint_transforms_;
   std::vector<float> staging_;  // packed joint transforms of the last run
   cl::Buffer skinned_normals_, out_positions_, out_normals_;
   SkinningStageTimes times_;
-  cl::Event upload_event_, skin_event_, normals_event_;  // of enqueue()
+  // Of enqueue(); the normals' two launches.
+  cl::Event upload_event_, skin_event_, triangle_normals_event_, normals_event_;
   bool pending_ = false, pending_normals_ = false;
   bool has_run_ = false;  // a frame was enqueued: results can be read
 };

@@ -124,13 +124,15 @@ class ClSurfaceTracking {
   cl::Buffer lane_offsets_, lane_params_, lane_masks_;
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
-      copy_duplicates_, normals_kernel_;
+      copy_duplicates_, triangle_normals_kernel_, normals_kernel_;
   cl::Buffer every_cell_;  // options.occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
       neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
-      ring_neighbours_, ring_weights_, normal_offsets_,
-      normal_corners_;  // VertexTriangleAdjacency::corners
+      ring_neighbours_, ring_weights_, normal_offsets_, normal_triangles_;
+  // The mesh's triangles (#F by 3) and their cross products of the frame.
+  int triangle_count_ = 0;
+  cl::Buffer triangles_, triangle_normals_;
   // The one-rings filtered to the neighbours within each vertex's smoothing
   // radius (rest distance), in ring order (diffusion, Laplacian steps).
   cl::Buffer near_offsets_, near_neighbours_;
