@@ -4,7 +4,7 @@
 #   ./run.sh test   install what is missing, build, run the whole test suite
 #   ./run.sh build  install what is missing and build only
 #   ./run.sh bench  build, then run the benchmarks (arguments go to isk_bench)
-#   ./run.sh benchmarks  build, run the whole suite, write BENCHMARKS.md
+#   ./run.sh benchmarks  build, run the whole suite, write bench/BENCHMARKS.md
 #                   (arguments go to bench/run_benchmarks.py)
 #   ./run.sh fuzz [SECONDS] [libFuzzer args]  build the fuzzer with Clang
 #                   into build-fuzz/ and fuzz the importer (default 60 s)
@@ -37,13 +37,18 @@ install_missing() {
     "${missing[@]}" >&2
 }
 
+# build [TARGET...]: configure, then build the targets named (default: all).
 build() {
   install_missing
   # PoCL reports no device at all when it cannot create its kernel cache.
   export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$PWD/.pocl-cache}
   mkdir -p "$POCL_CACHE_DIR"
   cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >&2
-  cmake --build "$BUILD_DIR" -j "$JOBS" >&2
+  if [ $# -gt 0 ]; then
+    cmake --build "$BUILD_DIR" -j "$JOBS" --target "$@" >&2
+  else
+    cmake --build "$BUILD_DIR" -j "$JOBS" >&2
+  fi
 }
 
 # libFuzzer over import -> rig -> skinning (fuzz/README.md). Seeds: the
@@ -146,7 +151,8 @@ valgrind_run() {
 
 case "${1:-}" in
   demo)
-    build
+    # The demo and the library only: not the tests and benchmarks.
+    build isk-demo
     shift
     "$BUILD_DIR/samples/demo/isk-demo" --out out "$@"
     ;;
@@ -158,12 +164,12 @@ case "${1:-}" in
     build
     ;;
   bench)
-    build
+    build isk_bench
     shift
     "$BUILD_DIR/bench/isk_bench" "$@"
     ;;
   benchmarks)
-    build
+    build isk_bench
     shift
     python3 bench/run_benchmarks.py --bench "$BUILD_DIR/bench/isk_bench" "$@"
     ;;

@@ -62,7 +62,7 @@
 #include "isk/cl/skinning.hpp"
 #include "isk/implicit_crowd.hpp"
 #include "isk/implicit_skinner.hpp"
-#include "isk/mesh_metrics.hpp"
+#include "isk/tools/mesh_metrics.hpp"
 
 namespace isk::bench {
 namespace {

@@ -21,7 +21,7 @@
 // Each cold iteration leaves one entry in POCL_CACHE_DIR.
 //
 // FieldBuild/<model>/cached-load: isk::buildImplicitFields with the field
-// cache (isk/field_cache.hpp) hitting: partition, samples + fits + grids
+// cache (isk/fields/field_cache.hpp) hitting: partition, samples + fits + grids
 // read and validated from the cache file (written once before the loop into
 // a temporary folder removed afterwards; in the OS page cache), composition
 // and iso values; all threads. FieldBuild/<model>/threads:<n>
@@ -52,10 +52,10 @@
 
 #include "bench_support.hpp"
 #include "data_folder.hpp"
-#include "isk/composition_operator.hpp"
-#include "isk/field_cache.hpp"
-#include "isk/implicit_fields.hpp"
-#include "isk/import.hpp"
+#include "isk/fields/composition_operator.hpp"
+#include "isk/fields/field_cache.hpp"
+#include "isk/fields/implicit_fields.hpp"
+#include "isk/io/import.hpp"
 
 namespace isk::bench {
 namespace {

@@ -15,7 +15,7 @@
 
 #include "bench_support.hpp"
 #include "isk/cl/skinning.hpp"
-#include "isk/cpu_skinning.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 
 namespace isk::bench {
 namespace {

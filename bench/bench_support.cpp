@@ -7,10 +7,10 @@
 #include <mutex>
 
 #include "data_folder.hpp"
-#include "isk/import.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
-#include "isk/subdivide.hpp"
+#include "isk/io/import.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
+#include "isk/tools/subdivide.hpp"
 
 namespace isk::bench {
 

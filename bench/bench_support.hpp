@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/rig.hpp"
-#include "isk/types.hpp"
+#include "isk/rig/rig.hpp"
+#include "isk/core/types.hpp"
 
 namespace isk::bench {
 

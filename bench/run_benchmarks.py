@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Runs the benchmark suite (build/bench/isk_bench) and writes BENCHMARKS.md.
+"""Runs the benchmark suite (build/bench/isk_bench) and writes bench/BENCHMARKS.md.
 
     python3 bench/run_benchmarks.py                  # everything
     python3 bench/run_benchmarks.py --filter 'CesiumMan$|^OperatorTable/' \\
@@ -1233,8 +1233,8 @@ def main():
                              "build/bench/isk_bench)")
     parser.add_argument("--json", help="where the JSON goes (default: "
                         "benchmarks.json next to the executable)")
-    parser.add_argument("--out", default=os.path.join(REPO, "BENCHMARKS.md"),
-                        help="the markdown written (default: BENCHMARKS.md)")
+    parser.add_argument("--out", default=os.path.join(REPO, "bench", "BENCHMARKS.md"),
+                        help="the markdown written (default: bench/BENCHMARKS.md)")
     parser.add_argument("--filter", help="--benchmark_filter passed on")
     parser.add_argument("--min-time", type=float,
                         help="--benchmark_min_time passed on (families with "

@@ -1,9 +1,9 @@
-// Baked implicit fields (isk/field_grid.hpp) evaluated at posed points, and
-// their composition (isk/field_composition.hpp: the max of every field and of
+// Baked implicit fields (isk/fields/field_grid.hpp) evaluated at posed points, and
+// their composition (isk/fields/field_composition.hpp: the max of every field and of
 // every blend or bulge pair, eq. 3). OpenCL C 1.2, self-contained. CPU
-// reference: lib/src/field_grid.cpp (sampling), lib/src/field_evaluation.cpp
-// (transforms, broad phase, composition), lib/src/composition_operator.cpp
-// (operator tables, controllers) and lib/src/field_composition.cpp
+// reference: lib/src/fields/field_grid.cpp (sampling), lib/src/fields/field_evaluation.cpp
+// (transforms, broad phase, composition), lib/src/fields/composition_operator.cpp
+// (operator tables, controllers) and lib/src/fields/field_composition.cpp
 // (composePair). Host class: lib/src/cl/field_evaluation.cpp.
 //
 // Storage, chosen at build time by ISK_FIELDS_IMAGE (0 when undefined):
@@ -41,7 +41,7 @@
 //          centre xyz, w = squared radius. A point outside it is outside the
 //          box: the field is not sampled (broad phase).
 //
-// Operator tables (isk/composition_operator.hpp), same storage as the fields:
+// Operator tables (isk/fields/composition_operator.hpp), same storage as the fields:
 // T tables of N^3 float4 (G, dG/dx, dG/dy, 0) over (x, y, theta), x the
 // larger field; node (i, j, k) of table t at i + N * (j + N * (k + N * t))
 // (the buffer) or at texel (i, j, t * N + k) (the image, N x N x T*N).
@@ -83,7 +83,7 @@
 
 // The trilinear interpolation of a cell's 8 corner values (cXYZ at
 // x, y, z in {0, 1}) at t in [0, 1]^3: along x, then y, then z, in the CPU
-// reference's order (detail::trilinearNodes, lib/src/trilinear.hpp).
+// reference's order (detail::trilinearNodes, lib/src/fields/trilinear.hpp).
 ISK_INLINE float4 trilinear_corners(const float4 c000, const float4 c100,
                                     const float4 c010, const float4 c110,
                                     const float4 c001, const float4 c101,
@@ -151,7 +151,7 @@ ISK_INLINE float4 trilinear_texels(read_only image3d_t image, const int4 origin,
 #if !ISK_FIELDS_IMAGE
 // Trilinear interpolation of the float4 nodes of an n^3 grid at node
 // coordinates u in [0, n - 1]; `grid` points at its node (0, 0, 0). Same
-// order of operations as detail::trilinearNodes (lib/src/trilinear.hpp).
+// order of operations as detail::trilinearNodes (lib/src/fields/trilinear.hpp).
 ISK_INLINE float4 trilinear_nodes(__global const float4* grid, const int n,
                        const float3 u) {
   const int3 i = min(convert_int3_rtz(u), (int3)(n - 2));

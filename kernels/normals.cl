@@ -1,5 +1,5 @@
 // Area-weighted vertex normals from deformed positions. OpenCL C 1.2,
-// self-contained. CPU reference: lib/src/vertex_normals.cpp.
+// self-contained. CPU reference: lib/src/core/vertex_normals.cpp.
 //
 // Two launches: triangle_normals takes each triangle's cross product once,
 // then vertex_normals gathers them per vertex over its incident triangles

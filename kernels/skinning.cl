@@ -1,5 +1,5 @@
 // Geometric skinning: linear blend (LBS) and dual quaternion (DQS, Kavan et
-// al. 2008). OpenCL C 1.2, self-contained. CPU reference: lib/src/skinning.cpp.
+// al. 2008). OpenCL C 1.2, self-contained. CPU reference: lib/src/skinning/skinning.cpp.
 //
 // Layout: positions/normals are packed float triples (vload3/vstore3);
 // influences are compressed rows (offsets[v] .. offsets[v+1]-1), sorted by

@@ -1,8 +1,8 @@
 // Surface tracking (Vaillant et al. 2013, section 5): projection of each
 // vertex onto its rest iso value with the 55 degree contact stop (eq. 4),
 // tangential relaxation (eq. 5, 6) and localized Laplacian smoothing (eq. 7).
-// OpenCL C 1.2. CPU reference: lib/src/surface_tracking.cpp (formulas and
-// states documented in lib/include/isk/surface_tracking.hpp). Host class:
+// OpenCL C 1.2. CPU reference: lib/src/tracking/surface_tracking.cpp (formulas and
+// states documented in lib/include/isk/tracking/surface_tracking.hpp). Host class:
 // lib/src/cl/surface_tracking.cpp, which builds this file after fields.cl
 // (the include below is resolved from the embedded sources; compiled on its
 // own, pass -I kernels).

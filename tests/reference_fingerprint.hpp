@@ -8,11 +8,11 @@
 #include <cstring>
 #include <string>
 
-#include "isk/animation.hpp"
-#include "isk/cpu_skinning.hpp"
+#include "isk/rig/animation.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/implicit_skinner.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
 
 namespace isk::test {
 

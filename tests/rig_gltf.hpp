@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "isk/rig.hpp"
+#include "isk/rig/rig.hpp"
 
 namespace isk::test {
 

@@ -18,10 +18,10 @@
 #include <utility>
 
 #include "data_folder.hpp"
-#include "isk/animation.hpp"
-#include "isk/import.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
+#include "isk/rig/animation.hpp"
+#include "isk/io/import.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
 
 namespace isk::test {
 

@@ -6,9 +6,9 @@
 #include <limits>
 #include <string>
 
-#include "isk/error.hpp"
+#include "isk/core/error.hpp"
 #include "skinner_fields.hpp"
-#include "stopwatch.hpp"
+#include "core/stopwatch.hpp"
 
 namespace isk {
 

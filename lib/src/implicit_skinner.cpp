@@ -3,9 +3,9 @@
 #include <chrono>
 #include <string>
 
-#include "isk/error.hpp"
+#include "isk/core/error.hpp"
 #include "skinner_fields.hpp"
-#include "stopwatch.hpp"
+#include "core/stopwatch.hpp"
 
 namespace isk {
 

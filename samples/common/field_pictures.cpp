@@ -7,9 +7,9 @@
 #include <iostream>
 #include <thread>
 
-#include "isk/field_evaluation.hpp"
-#include "isk/pose.hpp"
-#include "isk/skinning.hpp"
+#include "isk/fields/field_evaluation.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/skinning/skinning.hpp"
 
 namespace isk::samples {
 namespace {

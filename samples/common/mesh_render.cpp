@@ -7,7 +7,7 @@
 #include <limits>
 #include <sstream>
 
-#include "isk/error.hpp"
+#include "isk/core/error.hpp"
 
 // stb_easy_font: every function is static (v1.1), so this copy cannot clash
 // with another.

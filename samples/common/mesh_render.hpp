@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "isk/types.hpp"
+#include "isk/core/types.hpp"
 #include "slice_image.hpp"
 
 namespace isk::samples {

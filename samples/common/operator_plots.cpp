@@ -13,10 +13,10 @@
 #include <sstream>
 
 #include "field_pictures.hpp"
-#include "isk/error.hpp"
-#include "isk/field_composition.hpp"
-#include "isk/implicit_fields.hpp"
-#include "isk/procedural.hpp"
+#include "isk/core/error.hpp"
+#include "isk/fields/field_composition.hpp"
+#include "isk/fields/implicit_fields.hpp"
+#include "isk/tools/procedural.hpp"
 
 namespace isk::samples {
 namespace {

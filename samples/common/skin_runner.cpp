@@ -11,12 +11,12 @@
 #include <regex>
 #include <sstream>
 
-#include "isk/error.hpp"
-#include "isk/import.hpp"
-#include "isk/mesh_metrics.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
-#include "isk/self_intersection.hpp"
+#include "isk/core/error.hpp"
+#include "isk/io/import.hpp"
+#include "isk/tools/mesh_metrics.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
+#include "isk/tools/self_intersection.hpp"
 
 namespace isk::samples {
 namespace fs = std::filesystem;

@@ -9,17 +9,17 @@
 #include <string>
 #include <vector>
 
-#include "isk/animation.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/cl/runtime.hpp"
 #include "isk/cl/skinning.hpp"
-#include "isk/cpu_skinning.hpp"
-#include "isk/export.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/io/export.hpp"
 #include "isk/implicit_skinner.hpp"
-#include "isk/import.hpp"
-#include "isk/rig.hpp"
-#include "isk/skinning.hpp"
-#include "isk/types.hpp"
-#include "isk/vertex_normals.hpp"
+#include "isk/io/import.hpp"
+#include "isk/rig/rig.hpp"
+#include "isk/skinning/skinning.hpp"
+#include "isk/core/types.hpp"
+#include "isk/core/vertex_normals.hpp"
 
 namespace isk::samples {
 
@@ -29,7 +29,7 @@ namespace isk::samples {
 Rig loadRig(const std::string& input, ImportOptions options = {});
 
 // How the samples import files by default: in a child process stopped after
-// two minutes, since some corrupt files make Assimp hang (isk/import.hpp).
+// two minutes, since some corrupt files make Assimp hang (isk/io/import.hpp).
 constexpr double kImportTimeLimitSeconds = 120;
 inline ImportOptions guardedImportOptions() {
   ImportOptions options;

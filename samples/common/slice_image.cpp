@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "isk/error.hpp"
-#include "isk/export.hpp"
+#include "isk/core/error.hpp"
+#include "isk/io/export.hpp"
 
 // The one translation unit holding stb_image_write's implementation, kept
 // static so it never clashes with another copy.

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "isk/error.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk::samples {
 namespace {

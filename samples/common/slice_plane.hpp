@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "isk/types.hpp"
+#include "isk/core/types.hpp"
 
 namespace isk::samples {
 

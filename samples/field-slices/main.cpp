@@ -18,12 +18,12 @@
 #include <vector>
 
 #include "field_pictures.hpp"
-#include "isk/error.hpp"
-#include "isk/export.hpp"
-#include "isk/field_evaluation.hpp"
-#include "isk/implicit_fields.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
+#include "isk/core/error.hpp"
+#include "isk/io/export.hpp"
+#include "isk/fields/field_evaluation.hpp"
+#include "isk/fields/implicit_fields.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
 #include "skin_runner.hpp"
 
 namespace {

@@ -20,17 +20,17 @@
 
 #include "field_pictures.hpp"
 #include "isk/cl/field_evaluation.hpp"
-#include "isk/composition_operator.hpp"
-#include "isk/error.hpp"
-#include "isk/export.hpp"
-#include "isk/field_composition.hpp"
-#include "isk/field_evaluation.hpp"
-#include "isk/gltf_export.hpp"
-#include "isk/implicit_fields.hpp"
+#include "isk/fields/composition_operator.hpp"
+#include "isk/core/error.hpp"
+#include "isk/io/export.hpp"
+#include "isk/fields/field_composition.hpp"
+#include "isk/fields/field_evaluation.hpp"
+#include "isk/io/gltf_export.hpp"
+#include "isk/fields/implicit_fields.hpp"
 #include "isk/implicit_skinner.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
-#include "isk/rig_params.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
+#include "isk/io/rig_params.hpp"
 #include "skin_runner.hpp"
 
 namespace {
@@ -460,7 +460,7 @@ std::optional<isk::ImplicitFieldsOptions> loadParams(const Options& options,
   return field_options;
 }
 
-// Where the fields came from (isk/field_cache.hpp).
+// Where the fields came from (isk/fields/field_cache.hpp).
 void reportFieldCache(const isk::ImplicitFields& fields) {
   switch (fields.cache_origin) {
     case isk::FieldCacheOrigin::kOff:
@@ -496,7 +496,7 @@ void checkGltfTarget(const Options& options) {
 
 // Writes the run's frames (`positions`, `normals`) and, beside them, the
 // same frames skinned with LBS and DQS (those the run did not already
-// produce) to --gltf as an animated .glb (isk/gltf_export.hpp): tracks in
+// produce) to --gltf as an animated .glb (isk/io/gltf_export.hpp): tracks in
 // the order lbs, dqs, implicit, 1.2 bounding-box widths apart.
 void writeGltf(const Options& options, const isk::Rig& rig,
                const isk::AnimationClip& clip, FrameSkinner& skinner,

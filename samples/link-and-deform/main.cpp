@@ -8,11 +8,11 @@
 #include <exception>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/export.hpp"
+#include "isk/io/export.hpp"
 #include "isk/implicit_skinner.hpp"
-#include "isk/import.hpp"
-#include "isk/pose.hpp"
-#include "isk/procedural.hpp"
+#include "isk/io/import.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/tools/procedural.hpp"
 
 int main(int argc, char** argv) try {
   const isk::Rig rig =

@@ -14,7 +14,7 @@
 #include <sstream>
 #include <string>
 
-#include "isk/export.hpp"
+#include "isk/io/export.hpp"
 #include "operator_plots.hpp"
 
 namespace {

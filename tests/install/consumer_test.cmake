@@ -1,10 +1,11 @@
 # Installs isk into a fresh prefix and builds samples/link-and-deform against
 # the installed package, both ways, then runs each build on the procedural
 # cylinder and checks what it prints and writes:
-#   1. CMake, find_package(isk CONFIG), isk::isk (the shared library);
-#   2. pkg-config (isk.pc): `pkg-config --cflags --libs isk` (shared), and
-#      the same object linked with `pkg-config --static --libs isk`;
-#   3. CMake with ISK_USE_STATIC_LIBS=ON (isk::isk_static).
+#   1. CMake, find_package(isk CONFIG), isk::io (the shared libraries);
+#   2. pkg-config (isk-io.pc, which requires isk.pc): `pkg-config --cflags
+#      --libs isk-io` (shared), and the same object linked with
+#      `pkg-config --static --libs isk-io`;
+#   3. CMake with ISK_USE_STATIC_LIBS=ON (isk::io_static, isk::isk_static).
 # The two static programs run after the shared library is deleted from the
 # prefix, so they must be static.
 # cmake -DBUILD_DIR=... -DSOURCE_DIR=... -DWORK_DIR=... -DLIBDIR=...
@@ -86,10 +87,12 @@ set(prefix "${WORK_DIR}/prefix")
 run_step("cmake --install" "${CMAKE_COMMAND}" --install "${BUILD_DIR}"
          --prefix "${prefix}")
 foreach(file include/isk/implicit_skinner.hpp include/isk/cl/runtime.hpp
+             include/isk/io/import.hpp include/isk/core/types.hpp
              ${LIBDIR}/libisk.a ${LIBDIR}/libisk.so
+             ${LIBDIR}/libisk_io.a ${LIBDIR}/libisk_io.so
              ${LIBDIR}/cmake/isk/isk-config.cmake
              ${LIBDIR}/cmake/isk/isk-config-version.cmake
-             ${LIBDIR}/pkgconfig/isk.pc)
+             ${LIBDIR}/pkgconfig/isk.pc ${LIBDIR}/pkgconfig/isk-io.pc)
   if(NOT EXISTS "${prefix}/${file}")
     message(FATAL_ERROR "cmake --install did not install ${file}")
   endif()
@@ -115,7 +118,7 @@ string(STRIP "${step_output}" pc_version)
 if(NOT pc_version VERSION_EQUAL VERSION)
   message(FATAL_ERROR "isk.pc says version ${pc_version}, the project ${VERSION}")
 endif()
-run_step("pkg-config --cflags --libs isk" "${PKG_CONFIG}" --cflags --libs isk)
+run_step("pkg-config --cflags --libs isk-io" "${PKG_CONFIG}" --cflags --libs isk-io)
 separate_arguments(pc_flags UNIX_COMMAND "${step_output}")
 # Its include folder must be the prefix's, however pkg-config spells it.
 set(pc_include "")
@@ -138,10 +141,11 @@ run_step("linking the pkg-config consumer" "${CXX}" "${WORK_DIR}/main.o"
          "-Wl,-rpath,${prefix}/${LIBDIR}")
 check_run(pkg-config-shared "${WORK_DIR}/pkg-config-shared")
 # The same object linked statically: `pkg-config --static` lists the
-# private libraries, with libisk.a named by its path.
-run_step("pkg-config --static --libs isk" "${PKG_CONFIG}" --static --libs isk)
+# private libraries, with libisk_io.a and libisk.a named by their paths.
+run_step("pkg-config --static --libs isk-io" "${PKG_CONFIG}" --static --libs isk-io)
 separate_arguments(pc_static UNIX_COMMAND "${step_output}")
 list(TRANSFORM pc_static REPLACE "^-lisk$" "${prefix}/${LIBDIR}/libisk.a")
+list(TRANSFORM pc_static REPLACE "^-lisk_io$" "${prefix}/${LIBDIR}/libisk_io.a")
 run_step("linking the static pkg-config consumer" "${CXX}" "${WORK_DIR}/main.o"
          -o "${WORK_DIR}/pkg-config-static" ${pc_static})
 
@@ -151,7 +155,7 @@ run_step("configuring the static CMake consumer" ${configure}
 run_step("building the static CMake consumer" "${CMAKE_COMMAND}" --build "${WORK_DIR}/cmake-static")
 
 # The static programs run with the shared library gone from the prefix.
-file(GLOB shared_libs "${prefix}/${LIBDIR}/libisk.so*")
+file(GLOB shared_libs "${prefix}/${LIBDIR}/libisk.so*" "${prefix}/${LIBDIR}/libisk_io.so*")
 file(REMOVE ${shared_libs})
 check_run(cmake-static "${WORK_DIR}/cmake-static/isk-link-and-deform")
 check_run(pkg-config-static "${WORK_DIR}/pkg-config-static")

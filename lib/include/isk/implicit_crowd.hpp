@@ -100,7 +100,7 @@ class ImplicitCrowd {
   ImplicitCrowd& operator=(ImplicitCrowd&&) noexcept;
 
   // One frame of every instance: `skinning` holds #instances lists of
-  // skinning transforms (isk/pose.hpp), instance i's at [i], of
+  // skinning transforms (isk/rig/pose.hpp), instance i's at [i], of
   // jointCount(characterOf(i)) transforms. Returns
   // when the device is done. Throws isk::Error(kInvalidArgument) naming the
   // instance and joint for a list of the wrong size or a non-finite

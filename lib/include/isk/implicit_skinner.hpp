@@ -6,9 +6,9 @@
 //   skinner.readPositions(positions);  // or positionsBuffer() for interop
 //
 // Building (offline, on the CPU): the rig's implicit fields
-// (isk/implicit_fields.hpp: partition, HRBF fits, 32^3 grids, operators per
+// (isk/fields/implicit_fields.hpp: partition, HRBF fits, 32^3 grids, operators per
 // joint, iso values), the one-rings and mean value weights of tracking
-// (isk/surface_tracking.hpp), then one upload. A frame on the device:
+// (isk/tracking/surface_tracking.hpp), then one upload. A frame on the device:
 // geometric skinning (dual quaternions by default, LBS as an option) ->
 // rounds of (projection steps with the 55 degree contact stop, tangential
 // relaxation) -> beta diffusion and localized Laplacian smoothing ->
@@ -27,10 +27,10 @@
 #include "isk/cl/runtime.hpp"
 #include "isk/cl/skinning.hpp"
 #include "isk/cl/surface_tracking.hpp"
-#include "isk/cpu_skinning.hpp"
-#include "isk/implicit_fields.hpp"
-#include "isk/rig.hpp"
-#include "isk/surface_tracking.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/fields/implicit_fields.hpp"
+#include "isk/rig/rig.hpp"
+#include "isk/tracking/surface_tracking.hpp"
 
 namespace isk {
 
@@ -80,7 +80,7 @@ class ImplicitSkinner {
                   std::shared_ptr<const ImplicitFields> fields,
                   const ImplicitSkinnerOptions& options = {});
 
-  // One frame: #joints skinning transforms (isk/pose.hpp). Returns when the
+  // One frame: #joints skinning transforms (isk/rig/pose.hpp). Returns when the
   // device is done. Throws isk::Error(kInvalidArgument) for a pose of the
   // wrong size or with non-finite transforms.
   void run(const TransformList& skinning);

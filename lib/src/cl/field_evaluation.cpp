@@ -9,8 +9,8 @@
 #include <limits>
 #include <string>
 
-#include "isk/error.hpp"
-#include "stopwatch.hpp"
+#include "isk/core/error.hpp"
+#include "core/stopwatch.hpp"
 
 namespace isk {
 namespace {

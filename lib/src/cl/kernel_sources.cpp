@@ -1,9 +1,9 @@
-#include "kernel_sources.hpp"
+#include "cl/kernel_sources.hpp"
 
 #include <string>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/error.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 

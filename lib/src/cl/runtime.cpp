@@ -4,7 +4,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "isk/error.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 namespace {

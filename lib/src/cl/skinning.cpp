@@ -3,9 +3,9 @@
 #include <chrono>
 #include <string>
 
-#include "isk/error.hpp"
-#include "isk/vertex_normals.hpp"
-#include "stopwatch.hpp"
+#include "isk/core/error.hpp"
+#include "isk/core/vertex_normals.hpp"
+#include "core/stopwatch.hpp"
 
 namespace isk {
 namespace {

@@ -7,8 +7,8 @@
 #include <string>
 #include <type_traits>
 
-#include "isk/error.hpp"
-#include "stopwatch.hpp"
+#include "isk/core/error.hpp"
+#include "core/stopwatch.hpp"
 
 namespace isk {
 namespace {

@@ -1,11 +1,11 @@
 // Baked implicit fields evaluated on an OpenCL device.
 //
 // Host class of kernels/fields.cl: uploads a character's baked grids
-// (isk/field_grid.hpp) once, then per frame uploads only the fields'
+// (isk/fields/field_grid.hpp) once, then per frame uploads only the fields'
 // model -> bone transforms and evaluates every field and their composition
-// (isk/field_composition.hpp: blend and bulge pairs through the operator
+// (isk/fields/field_composition.hpp: blend and bulge pairs through the operator
 // tables, uploaded with the fields) at posed points. Results match the CPU
-// reference FieldEvaluationJob (isk/field_evaluation.hpp) to float rounding on
+// reference FieldEvaluationJob (isk/fields/field_evaluation.hpp) to float rounding on
 // both paths.
 //
 // Storage of the grids and operator tables (FieldStorage):
@@ -54,9 +54,9 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/field_evaluation.hpp"
-#include "isk/field_grid.hpp"
-#include "isk/types.hpp"
+#include "isk/fields/field_evaluation.hpp"
+#include "isk/fields/field_grid.hpp"
+#include "isk/core/types.hpp"
 
 namespace isk {
 

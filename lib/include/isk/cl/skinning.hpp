@@ -4,8 +4,8 @@
 // static data once, then per frame uploads only the joint transforms, runs
 // the skinning kernel (LBS or DQS) and the normals kernel, and leaves the
 // results in device buffers (read them back, or hand the buffers to your
-// renderer). Results match the CPU reference (isk/skinning.hpp and
-// isk/vertex_normals.hpp, together in isk/cpu_skinning.hpp) up to float
+// renderer). Results match the CPU reference (isk/skinning/skinning.hpp and
+// isk/core/vertex_normals.hpp, together in isk/skinning/cpu_skinning.hpp) up to float
 // rounding.
 #pragma once
 
@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/mesh.hpp"
-#include "isk/skin_weights.hpp"
-#include "isk/skinning.hpp"
-#include "isk/types.hpp"
+#include "isk/core/mesh.hpp"
+#include "isk/rig/skin_weights.hpp"
+#include "isk/skinning/skinning.hpp"
+#include "isk/core/types.hpp"
 
 namespace isk {
 

@@ -3,7 +3,7 @@
 // localized Laplacian smoothing) and of kernels/normals.cl.
 //
 // Same job, stages and formulas as the CPU reference isk::CpuSurfaceTracking
-// (isk/surface_tracking.hpp, where they are documented). Every buffer stays
+// (isk/tracking/surface_tracking.hpp, where they are documented). Every buffer stays
 // on the device: a frame uploads nothing but the pose (through the field
 // evaluation's setPose), starts from skinned positions already on the device
 // (isk::ClSkinning's buffers) and leaves its results in positionsBuffer() and
@@ -19,7 +19,7 @@
 
 #include "isk/cl/field_evaluation.hpp"
 #include "isk/cl/runtime.hpp"
-#include "isk/surface_tracking.hpp"
+#include "isk/tracking/surface_tracking.hpp"
 
 namespace isk {
 

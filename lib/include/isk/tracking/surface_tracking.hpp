@@ -1,0 +1,412 @@
+// Surface tracking (Vaillant et al. 2013, section 5), CPU reference: after
+// geometric skinning, each vertex marches back to its rest iso value in the
+// composed field by Newton steps (eq. 4), stops at a contact (a jump of the
+// gradient's direction), is relaxed tangentially between steps (eq. 5, 6),
+// and contact regions are smoothed at the end (eq. 7).
+//
+// Projection (eq. 4 with the sign fixed: f grows inward, so a vertex with
+// f < iso moves along +grad f):
+//   x <- x + sigma (iso - f(x)) grad f / |grad f|^2,   sigma = 0.35,
+// the move capped at max_step (a fraction of the bounding-box diagonal). A
+// step first compares the normalized gradient with the one of the vertex's
+// previous step: an angle above contact_angle (55 degrees) stops the vertex
+// (contact, it does not move). |f - iso| < tolerance (field units) stops it
+// as converged; f = 0 (outside every support) or a vanishing gradient stops
+// it as lost. A stopped vertex does no more work this frame.
+// Relaxation (eq. 5, 6), after each `projection_steps` steps, moves each
+// marching vertex towards the mean-value-weighted centroid of its one-ring,
+// tangentially (in the plane normal to grad f where the vertex's last
+// projection step sampled it, with that step's f: no new field sample):
+//   x <- x + mu T(sum_j w_j x_j - x),  mu = max(0, 1 - (|f - iso| - 1)^4),
+// with the rest pose's weights (isk/core/one_ring.hpp, RelaxationWeights).
+// Smoothing (eq. 7): beta = 1 on contact vertices, 0 elsewhere; diffused
+// `beta_diffusion` times over the one-ring (contact vertices stay at 1, the
+// others take the mean of themselves and their neighbours); then
+// `smoothing_steps` times x <- (1 - beta) x + beta centroid(one-ring).
+// Both use only neighbours within smoothing_radius (rest distance) of the
+// vertex. Crease vertices (see below) get a second weight gamma, diffused the
+// same way (`crease_diffusion` times), and `crease_steps` tangential Laplacian
+// steps: x <- x + (1 - beta) gamma T(centroid - x),
+// T removing the component along the ring's normal, so that vertices piled
+// in a crease spread out without the crease shrinking.
+// Boundary, isolated and duplicate vertices are neither relaxed nor smoothed.
+//
+// Contact by home field (home_contact, on by default; our addition, see
+// README "Surface tracking"): each vertex has a home field, the field of the
+// bone it was partitioned to. A vertex that geometric skinning pushed into
+// another part (the largest other field o exceeds its home field h by more
+// than at rest: o - h - margin > tolerance, with f > iso) marches instead to
+// the contact surface between the two parts, by Newton steps on
+// c = o - h - margin + contact_gap along grad(o - h), and stops there as a
+// contact. The paper's march would carry such a vertex out through the far
+// side of the other part when skinning put it past that part's bone (deep
+// folds, Figure 14(d)), and piles both parts' vertices on one surface at a
+// crease; contact_gap (field units) leaves the two parts' sheets a hair
+// apart instead of crossing. A field joined to the home field by a blend
+// pair whose joint is turned by less than 90 degrees from its bind pose is
+// not an "other" part: there the blend shapes the fold (a fillet, no
+// contact); from 90 degrees on the blend is a union and the parts meet in
+// contact. Bulge pairs keep the max's contact crease: always other parts.
+// A vertex that converges onto another part's surface beyond its rest
+// margin ends in a crease between parts (a concave union edge, where the
+// march piles vertices from both sides): it is marked kCrease and smoothed
+// tangentially.
+// Duplicates (seam copies, see one_ring.hpp) copy their representative's
+// result; normals are area-weighted over the welded mesh where the rest
+// normals agree (so seams do not show and hard edges stay hard).
+//
+// The OpenCL twin is isk::ClSurfaceTracking (isk/cl/surface_tracking.hpp):
+// same stages, same formulas; tests compare them stage by stage.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "isk/fields/field_composition.hpp"
+#include "isk/fields/field_evaluation.hpp"
+#include "isk/fields/field_grid.hpp"
+#include "isk/fields/implicit_fields.hpp"
+#include "isk/core/mesh.hpp"
+#include "isk/core/one_ring.hpp"
+#include "isk/core/types.hpp"
+#include "isk/core/validation.hpp"
+#include "isk/core/vertex_normals.hpp"
+
+namespace isk {
+
+// The parameters of tracking (above); the defaults are the paper's values
+// where it gives one.
+struct SurfaceTrackingOptions {
+  // Rounds of (projection_steps projection steps, then one relaxation). The
+  // paper relaxes after each pair of projection steps.
+  int rounds = 8;
+  int projection_steps = 2;
+  // Eq. 4's step factor, (0, 1]. The paper's 0.35 is its compromise
+  // between speed of convergence and accuracy: larger steps stop the
+  // vertices sooner (0.7: frames about two thirds as long on PoCL, the
+  // vertices about 1e-4 of the diagonal away on average), and at 1 some
+  // jump the contact surface (README, Benchmarks).
+  float sigma = 0.35f;
+  float contact_angle_degrees = 55.f;  // gradient jump that stops a vertex
+  float tolerance = 1e-3f;             // field units: converged below it
+  // Largest move of one projection step, fraction of the rest mesh's
+  // bounding-box diagonal (Newton steps explode where the gradient is weak).
+  float max_step = 0.02f;
+  // |grad f| * diagonal below it: the gradient has vanished (lost).
+  float min_gradient = 1e-3f;
+  bool relaxation = true;  // eq. 5, 6
+  // Contact by home field (see above) and the gap it leaves, field units.
+  bool home_contact = true;
+  float contact_gap = 0.05f;
+  int beta_diffusion = 1;   // eq. 7: diffusion iterations of beta
+  int smoothing_steps = 8;  // eq. 7: Laplacian steps
+  // Localized: diffusion and Laplacian steps use only the neighbours within
+  // this rest distance (fraction of the diagonal), so that the smoothed
+  // region has one size whatever the mesh's resolution (on a coarse mesh,
+  // a few rings would smooth whole limbs away).
+  float smoothing_radius = 0.02f;
+  // Creases (see above): diffusion iterations of gamma and tangential
+  // Laplacian steps.
+  int crease_diffusion = 5;
+  int crease_steps = 10;
+  // Speed only, the same result either way (benchmarks switch them off to
+  // measure them): sample a vertex's home field neighbourhood instead of
+  // every field while it is in its home field's box (FieldNeighbourhoods),
+  // march the vertices in TrackingMesh::march_order rather than by index
+  // (OpenCL), skip the grid loads of cells that are zero at all 8 nodes
+  // (occupiedCells; OpenCL), and skip the fields whose value bound in the
+  // cell shows they can change nothing at the point (cellValueBounds: below
+  // the home field's value and the best so far; OpenCL, projection).
+  bool field_neighbourhoods = true;
+  bool march_order = true;
+  bool occupied_cells = true;
+  bool value_bounds = true;
+  // Speed only, OpenCL: with field_neighbourhoods, each home field's box
+  // cut into this many cells per axis, a vertex sampling only the fields
+  // that can be non-zero in its cell (splitNeighbourhoodsIntoCells); 1: the
+  // whole box; 0: the device's choice (4 on a CPU device for a character
+  // with at least 100 tracked vertices per field, where it takes 8-10% off
+  // the projection on PoCL; 1 elsewhere).
+  int neighbourhood_cells = 0;
+  // Speed only, OpenCL on a CPU device, with field_neighbourhoods: the
+  // projection tests the fields listed in a vertex's cell (their bounding
+  // spheres and grid boxes) eight at a time, in float8 lanes over each home
+  // field's neighbourhood, rather than one by one; the same result. On
+  // PoCL the projection 1.09-1.21x faster (README, Benchmarks); other
+  // devices keep the loop (a GPU runs vector types lane by lane).
+  bool lane_tests = true;
+  // Speed only, OpenCL: the relaxation launches skip the stopped vertices,
+  // the diffusion and Laplacian launches the vertices out of reach of every
+  // contact and crease vertex (each step pushes its reach to the vertices
+  // whose rows list it), instead of copying them; the same result.
+  bool active_vertices = true;
+
+  // Names the first bad parameter and its valid range.
+  Validation validate() const;
+};
+
+// Per-vertex state of the march, kept between stages (on the device for
+// ClSurfaceTracking).
+enum class TrackState : uint8_t {
+  kMarching = 0,   // still moving
+  kConverged = 1,  // |f - iso| < tolerance
+  kContact = 2,    // stopped at a gradient jump (contact surface)
+  kLost = 3,       // left every support, or the gradient vanished
+  kUntracked = 4,  // iso value 0 (outside every field) or a seam duplicate
+  kCrease = 5,     // converged on another part's surface (home_contact)
+};
+
+// "marching", "converged", "contact", ... (the enumerator without its k).
+const char* trackStateName(TrackState state);
+
+// The static per-vertex data of tracking, built once per character.
+struct TrackingMesh {
+  // Partners per field of activePartners (more than that are treated as
+  // other parts).
+  static constexpr int kMaxPartners = 8;
+
+  // A blend or bulge pair of the composition, for activePartners.
+  struct PartnerPair {
+    int field_a = -1, field_b = -1;  // field indices: parent, child
+    int joint_a = -1, joint_b = -1;  // their joints (skeleton indices)
+    bool blend = false;              // a blend pair (false: bulge)
+  };
+
+  OneRings rings;                 // welded one-rings of the rest mesh
+  RelaxationWeights relaxation;   // eq. 5's weights over those rings
+  std::vector<float> iso_values;  // #V, 0: untracked
+  std::vector<int> home_field;    // #V: field of the vertex's bone, -1
+  // #V: max(0, o - h) at the bind pose, o the largest other field (all of
+  // them: partners may become other parts when their joint turns).
+  std::vector<float> home_margin;
+  std::vector<PartnerPair> partner_pairs;
+  int field_count = 0;
+  // Rest length of each one-ring edge, aligned with rings.neighbours.
+  std::vector<float> ring_lengths;
+  TriangleMatrix triangles;  // #F by 3
+  // Normals: per vertex the triangles of its welded group whose corner has
+  // a rest normal within ~8 degrees of its own (hard edges stay hard).
+  VertexTriangleAdjacency normal_adjacency;
+  float diagonal = 0;  // rest bounding-box diagonal (the model's size)
+  // #V, or empty: every vertex's `diagonal`. The tracking's lengths
+  // (trackingLengths) follow the size of the vertex's own character: a
+  // crowd of different characters (isk::ImplicitCrowd) gives each of its
+  // vertices its character's diagonal.
+  std::vector<float> vertex_diagonals;
+  // The tracked vertices (iso value > 0, representatives) in the order the
+  // projection kernel marches them: by home field, then along a Morton
+  // curve of the rest positions (locality of the grid samples).
+  std::vector<int> march_order;
+
+  int vertexCount() const { return static_cast<int>(iso_values.size()); }
+  // Vertex v's diagonal (vertex_diagonals[v], else diagonal).
+  float diagonalOf(int v) const {
+    return vertex_diagonals.empty() ? diagonal : vertex_diagonals[v];
+  }
+  // Vertices that march: representatives with an iso value > 0.
+  int trackedCount() const;
+
+  // Validates sizes (isk::Error kInvalidArgument) and builds the rings,
+  // weights, welded normal adjacency, home fields and margins of `mesh`
+  // (rest pose) from its implicit fields (isk/fields/implicit_fields.hpp: iso
+  // values, partition, grids, composition).
+  static TrackingMesh build(const Mesh& mesh, const ImplicitFields& fields);
+};
+
+// Per vertex, the lengths of tracking in model units, from the options'
+// fractions of the vertex's diagonal (TrackingMesh::diagonalOf): the
+// largest move of a projection step, the smallest |grad f| (the option over
+// the diagonal; the option itself for a zero diagonal) and the smoothing
+// radius. The CPU reference and the OpenCL path both take them from here.
+struct TrackingLengths {
+  std::vector<float> max_step;          // #V
+  std::vector<float> min_gradient;      // #V
+  std::vector<float> smoothing_radius;  // #V
+};
+TrackingLengths trackingLengths(const TrackingMesh& mesh,
+                                const SurfaceTrackingOptions& options);
+
+// Per field (#fields by kMaxPartners, -1 padded) the fields that are not
+// other parts for the contact by home field at the pose `skinning`
+// (#joints): those joined to it by a blend pair whose joint is turned by
+// less than 90 degrees from its bind pose (pairJointAngles).
+std::vector<int> activePartners(const TrackingMesh& mesh,
+                                const TransformList& skinning);
+
+// The exact broad phase of tracking at a pose. Per field h, the fields
+// whose posed support box (a parallelepiped: the grid's box through the
+// field's bone -> model transform) meets h's, h included, ascending, each
+// tagged kPartner when it is h or one of h's `partners` (an activePartners
+// list); and the indices of mesh.partner_pairs (the composition's blended
+// pairs) both of whose fields are listed. A point in h's box lies outside
+// the box of every field not listed, so a vertex whose home field is h
+// samples only h's list while it is in h's box: the same composed field,
+// bit for bit (same order, so unions tie the same way), for a fraction of
+// the fields (human-addon: 53 fields).
+struct FieldNeighbourhoods {
+  static constexpr int kPartner = 1 << 16;  // entry = field | kPartner
+  static constexpr int kFieldMask = kPartner - 1;
+  std::vector<int> offsets;       // #fields + 1, into entries
+  std::vector<int> entries;       // field index, | kPartner
+  std::vector<int> pair_offsets;  // #fields + 1, into pairs
+  std::vector<int> pairs;         // indices of mesh.partner_pairs
+  // The finer broad phase of the OpenCL projection
+  // (splitNeighbourhoodsIntoCells): each field h's support box cut into
+  // K^3 equal cells (K = cells_per_axis), cell (i, j, k) at index
+  // h * K^3 + i + K * (j + K * k) (i along the box's x); in
+  // cell_entries[cell_offsets[c] .. cell_offsets[c + 1]] the entries of h's
+  // list (same order, same flags) whose field can be non-zero somewhere in
+  // cell c. Empty until split.
+  int cells_per_axis = 0;
+  std::vector<int> cell_offsets;  // #fields * K^3 + 1
+  std::vector<int> cell_entries;
+  // Mean number of fields listed per field.
+  double meanListed() const;
+};
+// to_bone: #fields model -> bone transforms at the pose (fieldTransforms);
+// partners: activePartners at the same pose (may be empty: none).
+FieldNeighbourhoods fieldNeighbourhoods(
+    const TrackingMesh& mesh, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<int>& partners);
+
+// Fills neighbourhoods' cell lists (see FieldNeighbourhoods), K =
+// cells_per_axis (1 to 16) cells per axis of each box: a cell lists
+// an entry when the field's occupied box (occupied_boxes, #fields, bone
+// frame: occupiedBox, outside which the field is 0), posed through to_bone
+// (#fields, as for fieldNeighbourhoods) and taken as an axis-aligned box
+// in h's bone frame, meets the cell; both are grown by 1e-3 of their size
+// so that rounding never drops a field. A point of h's box is then in
+// every non-zero field's list of the cell that holds it, the cell the
+// kernel finds from the point's node coordinates u in h's grid:
+// min(floor(u * K / (resolution - 1)), K - 1) per axis. A transform that is
+// not finite lists the field in every cell. Throws
+// isk::Error(kInvalidArgument) when the sizes do not match the
+// neighbourhoods' fields or K is out of range.
+void splitNeighbourhoodsIntoCells(
+    FieldNeighbourhoods& neighbourhoods, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<Eigen::AlignedBox3f>& occupied_boxes, int cells_per_axis);
+
+// Whether the posed support boxes of grids a and b (through their model ->
+// bone transforms) meet, by separating axes; each box is first grown by
+// `margin` of its size per side so that rounding never separates boxes
+// that touch.
+bool posedBoxesMeet(const FieldGrid& a, const Eigen::Affine3f& a_to_bone,
+                    const FieldGrid& b, const Eigen::Affine3f& b_to_bone,
+                    float margin = 1e-3f);
+
+// A vertex's home field sample and the largest sample of the other parts'
+// fields (not the home field, not its partners in `partners`, an
+// activePartners list; null: none), from the #fields samples at a point
+// (value, gradient; zero when none).
+struct HomeSamples {
+  Eigen::Vector4f home = Eigen::Vector4f::Zero();   // value, gradient
+  Eigen::Vector4f other = Eigen::Vector4f::Zero();  // value, gradient
+};
+HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
+                        int vertex, const Eigen::Vector4f* per_field);
+
+// One frame's per-vertex results and counts.
+struct TrackingCounts {
+  int marching = 0, converged = 0, contact = 0, lost = 0, untracked = 0,
+      crease = 0;
+};
+// How many vertices are in each state.
+TrackingCounts countStates(const std::vector<TrackState>& states);
+
+// Milliseconds per stage of one frame (host wall time on the CPU, profiling
+// events on OpenCL).
+struct TrackingStageTimes {
+  double projection_ms = 0;  // all projection steps
+  double relaxation_ms = 0;  // all relaxation steps
+  double smoothing_ms = 0;   // beta diffusion and Laplacian steps
+  double normals_ms = 0;     // seam copies and normals
+  // Sum of the stages.
+  double total() const {
+    return projection_ms + relaxation_ms + smoothing_ms + normals_ms;
+  }
+};
+
+// The CPU reference of a character's tracking. Keeps pointers to `fields`,
+// `composition` (may be null: union of all fields) and `mesh`: they must
+// outlive it.
+class CpuSurfaceTracking {
+ public:
+  // Throws isk::Error(kInvalidArgument) for bad options (naming the option)
+  // or a tracking mesh not built by TrackingMesh::build.
+  CpuSurfaceTracking(const FieldGridSet& fields, const Composition* composition,
+                     const TrackingMesh& mesh,
+                     const SurfaceTrackingOptions& options = {});
+
+  // Stage by stage (what run() chains; tests call them one at a time).
+  // begin: the frame's pose (#joints skinning transforms) and the skinned
+  // positions (#V by 3) and normals (fallback of the normals stage).
+  // Throws isk::Error(kInvalidArgument) for sizes that do not match the
+  // mesh or a pose shorter than the fields' joints. The other stages and
+  // setState() throw isk::Error(kInvalidArgument) before the first begin().
+  void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
+             const Matrix3Xf& skinned_normals);
+  void project(int steps);  // `steps` projection steps (eq. 4)
+  void relax();             // one relaxation step (eq. 5, 6)
+  void smooth();            // beta, its diffusion and the Laplacian steps
+  void finish();            // seam copies and normals
+
+  // The whole frame: begin, rounds x (project, relax), smooth, finish.
+  void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
+           const Matrix3Xf& skinned_normals);
+
+  // Replaces the working state (tests: both backends from the same input).
+  // prev_gradients: #V by 4, xyz the previous step's unit gradient, w 1 when
+  // set. Throws isk::Error(kInvalidArgument) unless every size is #V.
+  void setState(const Matrix3Xf& positions,
+                const std::vector<TrackState>& states,
+                const Matrix4Xf& prev_gradients,
+                const Matrix4Xf* relax_frames = nullptr);
+
+  // The working state: #V by 3 positions and normals (model space, normals
+  // of unit length after finish()), #V states.
+  const Matrix3Xf& positions() const { return positions_; }
+  const Matrix3Xf& normals() const { return normals_; }
+  const std::vector<TrackState>& states() const { return states_; }
+  // Two per vertex: beta (contacts, eq. 7) and gamma (creases).
+  const std::vector<float>& beta() const { return beta_; }
+  const Matrix4Xf& previousGradients() const { return prev_; }
+  // #V by 4: the surface each vertex marches to as its last projection step
+  // sampled it (signed distance f - iso, or the contact function c, then
+  // the unit normal; zero before any step): the relaxation's tangent plane
+  // and mu, so that relaxation samples no field.
+  const Matrix4Xf& relaxFrames() const { return relax_frames_; }
+  // Milliseconds per stage of the last run().
+  const TrackingStageTimes& lastTimes() const { return times_; }
+  const SurfaceTrackingOptions& options() const { return options_; }
+
+ private:
+  const FieldGridSet* fields_;
+  const Composition* composition_;
+  const TrackingMesh* mesh_;
+  SurfaceTrackingOptions options_;
+  TransformList skinning_;
+  TrackingLengths lengths_;
+  Matrix3Xf positions_, scratch_, fallback_normals_, normals_;
+  std::vector<TrackState> states_;
+  std::vector<int> partners_;           // activePartners of the frame's pose
+  FieldNeighbourhoods neighbourhoods_;  // of the frame's pose
+  // The composed field at x for vertex v (its neighbourhood's fields when x
+  // is in its home field's box); per_field: #fields samples, 0 where
+  // not sampled.
+  // home (when not null) receives homeSamples with the frame's partners.
+  Eigen::Vector4f sampleAt(const ComposedFieldSampler& sampler, int v,
+                           const Eigen::Vector3f& x, Eigen::Vector4f* per_field,
+                           HomeSamples* home) const;
+  // Throws isk::Error(kInvalidArgument) naming `stage` before begin().
+  void checkBegun(const char* stage) const;
+  Matrix4Xf prev_;          // previous unit gradient, w = 1 when set
+  Matrix4Xf relax_frames_;  // see relaxFrames()
+  std::vector<float> beta_, beta_scratch_;
+  TrackingStageTimes times_;
+  bool begun_ = false;  // a frame's state exists (begin() was called)
+};
+
+}  // namespace isk

@@ -1,0 +1,182 @@
+#include "isk/fields/bone_partition.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "isk/core/error.hpp"
+
+namespace isk {
+
+Eigen::Vector3d BoneSegment::direction() const {
+  const Eigen::Vector3d d = end - start;
+  const double n = d.norm();
+  return n > 0 ? Eigen::Vector3d(d / n) : Eigen::Vector3d::UnitX();
+}
+
+double BoneSegment::along(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d d = end - start;
+  const double l2 = d.squaredNorm();
+  return l2 > 0 ? (p - start).dot(d) / l2 : 0.0;
+}
+
+double BoneSegment::distance(const Eigen::Vector3d& p) const {
+  const double t = std::clamp(along(p), 0.0, 1.0);
+  return (p - (start + t * (end - start))).norm();
+}
+
+namespace {
+
+Eigen::Vector3d jointPosition(const TransformList& globals, int j) {
+  return globals[j].translation().cast<double>();
+}
+
+double meanDistance(const BoneSegment& s, const Mesh& mesh,
+                    const std::vector<int>& vertices) {
+  double sum = 0;
+  for (int v : vertices)
+    sum += s.distance(mesh.positions.row(v).transpose().cast<double>());
+  return vertices.empty() ? 0 : sum / vertices.size();
+}
+
+}  // namespace
+
+BonePartition partitionMesh(const Rig& rig) {
+  rig.validate().throwIfFailed("partitionMesh");
+  const Skeleton& skeleton = rig.skeleton;
+  const Mesh& mesh = rig.mesh;
+  const int joint_count = skeleton.jointCount();
+  const int vertex_count = mesh.vertexCount();
+  const TransformList globals = skeleton.bindGlobals();
+  const double min_length = 1e-6 * std::max(rig.boundingBoxDiagonal(), 1e-30f);
+
+  std::vector<std::vector<int>> children(joint_count);
+  for (int j = 0; j < joint_count; ++j)
+    if (skeleton.joints[j].parent >= 0)
+      children[skeleton.joints[j].parent].push_back(j);
+
+  BonePartition partition;
+  partition.part_vertices.assign(joint_count, {});
+  partition.part_triangles.assign(joint_count, {});
+  partition.segments.resize(joint_count);
+
+  // Provisional segments (joint -> first non-coincident child) break weight
+  // ties; final segments are chosen once the parts are known.
+  std::vector<BoneSegment> provisional(joint_count);
+  for (int j = 0; j < joint_count; ++j) {
+    provisional[j].joint = j;
+    provisional[j].start = provisional[j].end = jointPosition(globals, j);
+    for (int c : children[j]) {
+      const Eigen::Vector3d p = jointPosition(globals, c);
+      if ((p - provisional[j].start).norm() > min_length) {
+        provisional[j].end = p;
+        break;
+      }
+    }
+  }
+
+  partition.vertex_joint.assign(vertex_count, -1);
+  const SkinWeights& w = rig.weights;
+  for (int v = 0; v < vertex_count; ++v) {
+    const Eigen::Vector3d p = mesh.positions.row(v).transpose().cast<double>();
+    int best = w.joints[w.offsets[v]];
+    const float best_weight = w.weights[w.offsets[v]];
+    double best_distance = provisional[best].distance(p);
+    for (uint32_t i = w.offsets[v] + 1; i < w.offsets[v + 1]; ++i) {
+      if (best_weight - w.weights[i] > 1e-6f) break;  // sorted by weight
+      const int j = w.joints[i];
+      const double d = provisional[j].distance(p);
+      if (d < best_distance) {
+        best = j;
+        best_distance = d;
+      }
+    }
+    partition.vertex_joint[v] = best;
+    partition.part_vertices[best].push_back(v);
+  }
+  for (int t = 0; t < mesh.triangleCount(); ++t) {
+    const int a = partition.vertex_joint[mesh.triangles(t, 0)];
+    const int b = partition.vertex_joint[mesh.triangles(t, 1)];
+    const int c = partition.vertex_joint[mesh.triangles(t, 2)];
+    const int owner = (b == c) ? b : a;
+    partition.part_triangles[owner].push_back(t);
+  }
+
+  for (int j = 0; j < joint_count; ++j) {
+    BoneSegment& s = partition.segments[j];
+    s.joint = j;
+    s.start = s.end = jointPosition(globals, j);
+    const std::vector<int>& part = partition.part_vertices[j];
+    // Several children: the one that continues the parent's direction (the
+    // spine goes on to the neck, not to a shoulder); at a root, the one
+    // nearest on average to the part's vertices.
+    const int parent_joint = skeleton.joints[j].parent;
+    Eigen::Vector3d incoming = Eigen::Vector3d::Zero();
+    if (parent_joint >= 0)
+      incoming = s.start - jointPosition(globals, parent_joint);
+    const bool follow_chain = incoming.norm() > min_length;
+    double best_fit = std::numeric_limits<double>::infinity();
+    for (int c : children[j]) {
+      BoneSegment candidate = s;
+      candidate.end = jointPosition(globals, c);
+      candidate.end_joint = c;
+      if (candidate.length() <= min_length) continue;
+      const double fit = follow_chain
+                             ? -candidate.direction().dot(incoming.normalized())
+                             : meanDistance(candidate, mesh, part);
+      if (fit < best_fit) {
+        best_fit = fit;
+        s.end = candidate.end;
+        s.end_joint = c;
+      }
+    }
+    if (s.end_joint < 0 && !part.empty()) {
+      // A leaf: continue the parent's direction as far as the part reaches.
+      const int parent = skeleton.joints[j].parent;
+      if (parent >= 0) {
+        const Eigen::Vector3d from = jointPosition(globals, parent);
+        const Eigen::Vector3d dir = s.start - from;
+        if (dir.norm() > min_length) {
+          const Eigen::Vector3d unit = dir.normalized();
+          double reach = 0;
+          for (int v : part)
+            reach = std::max(
+                reach,
+                (mesh.positions.row(v).transpose().cast<double>() - s.start)
+                    .dot(unit));
+          if (reach > min_length) s.end = s.start + reach * unit;
+        }
+      }
+    }
+    s.degenerate = s.length() <= min_length;
+    if (s.degenerate) s.end = s.start;
+    const int parent = skeleton.joints[j].parent;
+    s.close_start = !s.degenerate && parent >= 0 &&
+                    !partition.part_vertices[parent].empty();
+    s.close_end = !s.degenerate && s.end_joint >= 0 &&
+                  !partition.part_vertices[s.end_joint].empty();
+  }
+
+  for (int j = 0; j < joint_count; ++j) {
+    const Joint& joint = skeleton.joints[j];
+    if (partition.part_vertices[j].empty()) {
+      if (joint.is_skin_joint)
+        partition.warnings.push_back(
+            "joint '" + joint.name +
+            "' has no vertex of its own (no vertex has it as its largest "
+            "weight): it gets no field");
+      continue;
+    }
+    partition.field_joints.push_back(j);
+    if (partition.segments[j].degenerate)
+      partition.warnings.push_back(
+          "joint '" + joint.name +
+          "' has a zero-length bone (no child or part extent to point to): "
+          "its field is fitted around a point, without culling planes or "
+          "closure points");
+  }
+  return partition;
+}
+
+}  // namespace isk

@@ -1,0 +1,302 @@
+#include "isk/fields/implicit_fields.hpp"
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+
+#include "isk/core/error.hpp"
+#include "isk/fields/field_cache.hpp"
+#include "core/parallel_for.hpp"
+#include "core/stopwatch.hpp"
+
+namespace isk {
+namespace {
+
+using detail::parallelFor;
+
+// The part's vertices with their geometric normals, as samples: the last
+// resort for parts too small for Poisson-disk sampling.
+HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
+                             int joint) {
+  std::vector<Eigen::Vector3d> normals(mesh.vertexCount(),
+                                       Eigen::Vector3d::Zero());
+  for (int t : partition.part_triangles[joint]) {
+    const Eigen::Vector3d a =
+        mesh.positions.row(mesh.triangles(t, 0)).transpose().cast<double>();
+    const Eigen::Vector3d b =
+        mesh.positions.row(mesh.triangles(t, 1)).transpose().cast<double>();
+    const Eigen::Vector3d c =
+        mesh.positions.row(mesh.triangles(t, 2)).transpose().cast<double>();
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    for (int i = 0; i < 3; ++i) normals[mesh.triangles(t, i)] += n;
+  }
+  // Vertices split along seams share a position: one sample each, with the
+  // summed normal.
+  std::map<std::array<float, 3>, Eigen::Vector3d> by_position;
+  for (int v : partition.part_vertices[joint]) {
+    Eigen::Vector3d n = normals[v];
+    if (!(n.norm() > 0)) n = mesh.normals.row(v).transpose().cast<double>();
+    if (!(n.norm() > 0) || !n.allFinite()) continue;
+    const std::array<float, 3> key = {
+        mesh.positions(v, 0), mesh.positions(v, 1), mesh.positions(v, 2)};
+    auto it = by_position.emplace(key, Eigen::Vector3d::Zero()).first;
+    it->second += n.normalized();
+  }
+  HermiteSamples s;
+  for (const auto& [key, n] : by_position) {
+    if (!(n.norm() > 1e-9)) continue;
+    s.positions.push_back(Eigen::Vector3d(key[0], key[1], key[2]));
+    s.normals.push_back(n.normalized());
+  }
+  return s;
+}
+
+}  // namespace
+
+const char* fieldCacheOriginName(FieldCacheOrigin origin) {
+  switch (origin) {
+    case FieldCacheOrigin::kOff:
+      return "off";
+    case FieldCacheOrigin::kBuilt:
+      return "built";
+    case FieldCacheOrigin::kLoaded:
+      return "loaded";
+    case FieldCacheOrigin::kRebuilt:
+      return "rebuilt";
+  }
+  return "?";
+}
+
+ImplicitFields buildImplicitFields(const Rig& rig,
+                                   const ImplicitFieldsOptions& options) {
+  // 256^3 float4 is already 256 MiB per bone.
+  if (options.grid_resolution < 2 || options.grid_resolution > 256)
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "buildImplicitFields: grid_resolution must be in [2, 256], got " +
+            std::to_string(options.grid_resolution));
+  if (options.sampling.target_samples < 1)
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: target_samples must be at least 1");
+  if (!(options.sampling.culling_h >= 0 && options.sampling.culling_h < 0.5))
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: culling_h must be in [0, 0.5)");
+  if (options.grid_precision != GridPrecision::kFloat &&
+      options.grid_precision != GridPrecision::kHalf)
+    throw Error(ErrorCode::kInvalidArgument,
+                "buildImplicitFields: grid_precision must be kFloat or kHalf, "
+                "got " +
+                    std::to_string(static_cast<int>(options.grid_precision)));
+  // The rig first, named by its source (partitionMesh validates it again).
+  rig.validate().throwIfFailed("buildImplicitFields: " + rig.source);
+  for (const auto& [name, samples] : options.joint_samples) {
+    if (rig.skeleton.find(name) < 0)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "buildImplicitFields: joint_samples names joint '" + name +
+                      "', which the skeleton does not have");
+    if (samples < 1 || samples > 100000)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "buildImplicitFields: joint_samples['" + name +
+                      "'] must be in [1, 100000], got " +
+                      std::to_string(samples));
+  }
+  validateCompositionOptions(rig.skeleton, options.composition)
+      .throwIfFailed("buildImplicitFields");
+  auto report = [&](const char* stage, float fraction) {
+    if (options.progress) options.progress(stage, fraction);
+  };
+  const int threads = detail::threadCount(options.threads);
+  ImplicitFields out;
+
+  auto start = std::chrono::steady_clock::now();
+  report("partition", 0);
+  out.partition = partitionMesh(rig);
+  out.warnings = out.partition.warnings;
+  report("partition", 1);
+  out.times.partition_ms = detail::millisecondsSince(start);
+  const Skeleton& skeleton = rig.skeleton;
+
+  // The cache: samples, fits and grids of this rig and these parameters.
+  std::string cache_path;
+  if (options.cache && !options.edit_samples) {
+    const std::string folder = options.cache_folder.empty()
+                                   ? operatorTableCacheFolder()
+                                   : options.cache_folder;
+    if (!folder.empty())
+      cache_path =
+          (std::filesystem::path(folder) / fieldCacheFileName(rig, options))
+              .string();
+  }
+  bool loaded = false;
+  if (!cache_path.empty()) {
+    out.cache_file = cache_path;
+    out.cache_origin = FieldCacheOrigin::kBuilt;
+    std::error_code ec;
+    if (std::filesystem::exists(
+            std::filesystem::symlink_status(cache_path, ec))) {
+      start = std::chrono::steady_clock::now();
+      report("loading", 0);
+      std::string why;
+      if (loadFieldCache(cache_path, rig, options, &out, &why)) {
+        loaded = true;
+        out.cache_origin = FieldCacheOrigin::kLoaded;
+        out.times.sampling_ms = detail::millisecondsSince(start);
+        report("loading", 1);
+      } else {
+        out.cache_origin = FieldCacheOrigin::kRebuilt;
+        out.cache_note = why;
+        out.warnings = out.partition.warnings;
+        std::fprintf(stderr,
+                     "isk: field cache unusable (%s); building the fields "
+                     "again\n",
+                     why.c_str());
+      }
+    }
+  }
+  if (!loaded) {
+    start = std::chrono::steady_clock::now();
+    const std::vector<int>& joints = out.partition.field_joints;
+    std::vector<BoneSamples> samples(joints.size());
+    for (size_t i = 0; i < joints.size(); ++i) {
+      const int j = joints[i];
+      const std::string name = "joint '" + skeleton.joints[j].name + "'";
+      BoneSamplingOptions sampling = options.sampling;
+      if (const auto it = options.joint_samples.find(skeleton.joints[j].name);
+          it != options.joint_samples.end())
+        sampling.target_samples = it->second;
+      samples[i] = sampleBonePart(rig.mesh, out.partition, j, sampling);
+      if (samples[i].all().size() < 4 && samples[i].culled > 0) {
+        BoneSamplingOptions uncut = sampling;
+        uncut.culling_h = 0;
+        samples[i] = sampleBonePart(rig.mesh, out.partition, j, uncut);
+        out.warnings.push_back(name +
+                               ": fewer than 4 samples after culling; "
+                               "sampled without culling planes");
+      }
+      if (samples[i].all().size() < 4) {
+        samples[i].surface = vertexSamples(rig.mesh, out.partition, j);
+        out.warnings.push_back(
+            name + ": part too small for Poisson-disk sampling (" +
+            std::to_string(out.partition.part_vertices[j].size()) +
+            " vertices); its vertices are the samples");
+      }
+      report("sampling", static_cast<float>(i + 1) / joints.size());
+    }
+    if (options.edit_samples) options.edit_samples(samples);
+    out.times.sampling_ms = detail::millisecondsSince(start);
+
+    start = std::chrono::steady_clock::now();
+    std::vector<BoneField> fields(samples.size());
+    std::vector<std::vector<std::string>> fit_warnings(samples.size());
+    std::vector<char> fitted(samples.size(), 0);
+    parallelFor(
+        static_cast<int>(samples.size()), threads,
+        [&](int i) {
+          try {
+            fields[i] =
+                fitBoneField(skeleton, rig.mesh.positions, out.partition,
+                             samples[i], &fit_warnings[i]);
+            fitted[i] = 1;
+          } catch (const Error& e) {
+            fit_warnings[i].push_back(std::string(e.what()) +
+                                      "; this bone gets no field");
+          }
+        },
+        [&](float f) { report("fitting", f); });
+    for (size_t i = 0; i < samples.size(); ++i) {
+      out.warnings.insert(out.warnings.end(), fit_warnings[i].begin(),
+                          fit_warnings[i].end());
+      if (!fitted[i]) continue;
+      out.samples.push_back(std::move(samples[i]));
+      out.fields.push_back(std::move(fields[i]));
+    }
+    out.times.fitting_ms = detail::millisecondsSince(start);
+
+    start = std::chrono::steady_clock::now();
+    out.grids.resolution = options.grid_resolution;
+    out.grids.grids.resize(out.fields.size());
+    parallelFor(
+        static_cast<int>(out.fields.size()), threads,
+        [&](int i) {
+          out.grids.grids[i] =
+              bakeField(out.fields[i], options.grid_resolution);
+        },
+        [&](float f) { report("baking", f); });
+    out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
+    for (int i = 0; i < out.grids.fieldCount(); ++i)
+      out.grids.field_of_joint[out.grids.grids[i].joint] = i;
+    out.times.baking_ms = detail::millisecondsSince(start);
+    if (!cache_path.empty()) {
+      std::string why;
+      if (!saveFieldCache(out, rig, options, cache_path, &why))
+        std::fprintf(stderr,
+                     "isk: could not write the field cache (%s); the fields "
+                     "will be built again next time\n",
+                     why.c_str());
+    }
+  }  // !loaded
+
+  start = std::chrono::steady_clock::now();
+  report("operators", 0);
+  out.composition = buildComposition(skeleton, out.grids, options.composition,
+                                     [&](float f) { report("operators", f); });
+  out.warnings.insert(out.warnings.end(), out.composition.warnings.begin(),
+                      out.composition.warnings.end());
+  out.times.operators_ms = detail::millisecondsSince(start);
+
+  if (options.grid_precision == GridPrecision::kHalf)
+    roundGridsToHalf(out.grids);
+
+  start = std::chrono::steady_clock::now();
+  report("iso values", 0);
+  out.iso_values = computeIsoValues(out.grids, rig.mesh.positions,
+                                    &out.composition, &out.outside_vertices);
+  if (!out.outside_vertices.empty())
+    out.warnings.push_back(
+        std::to_string(out.outside_vertices.size()) +
+        " vertices lie outside every field's support (first: vertex " +
+        std::to_string(out.outside_vertices.front()) + " of " +
+        rig.mesh.describeVertex(out.outside_vertices.front()) +
+        "); surface tracking leaves them where skinning puts them");
+  report("iso values", 1);
+  out.times.iso_ms = detail::millisecondsSince(start);
+  return out;
+}
+
+void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig) {
+  if (fields.grids.precision == GridPrecision::kHalf) return;
+  if (static_cast<int>(fields.iso_values.size()) != rig.mesh.vertexCount())
+    throw Error(ErrorCode::kInvalidArgument,
+                "useHalfPrecisionGrids: the fields have " +
+                    std::to_string(fields.iso_values.size()) +
+                    " iso values, the rig's mesh " +
+                    std::to_string(rig.mesh.vertexCount()) + " vertices");
+  FieldGridSet rounded = fields.grids;
+  roundGridsToHalf(rounded);
+  std::vector<int> outside;
+  std::vector<float> iso = computeIsoValues(rounded, rig.mesh.positions,
+                                            &fields.composition, &outside);
+  fields.grids = std::move(rounded);
+  fields.iso_values = std::move(iso);
+  fields.outside_vertices = std::move(outside);
+}
+
+Validation fieldsFitRig(const ImplicitFields& fields, const Rig& rig) {
+  if (static_cast<int>(fields.iso_values.size()) != rig.mesh.vertexCount())
+    return Validation::fail("the fields hold " +
+                            std::to_string(fields.iso_values.size()) +
+                            " iso values but " + rig.source + " has " +
+                            std::to_string(rig.mesh.vertexCount()) +
+                            " vertices (built for another rig?)");
+  for (const FieldGrid& g : fields.grids.grids)
+    if (g.joint < 0 || g.joint >= rig.skeleton.jointCount())
+      return Validation::fail(
+          "a field belongs to joint " + std::to_string(g.joint) + " but " +
+          rig.source + " has " + std::to_string(rig.skeleton.jointCount()) +
+          " joints (built for another rig?)");
+  return Validation::ok();
+}
+
+}  // namespace isk

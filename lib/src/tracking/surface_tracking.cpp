@@ -1,0 +1,919 @@
+#include "isk/tracking/surface_tracking.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include "isk/core/error.hpp"
+#include "isk/tools/mesh_metrics.hpp"
+
+namespace isk {
+
+namespace {
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+// Rest normals closer than this share a smoothed normal across a seam.
+constexpr float kSameNormalCos = 0.99f;
+
+}  // namespace
+
+Validation SurfaceTrackingOptions::validate() const {
+  auto bad = [](const std::string& what) { return Validation::fail(what); };
+  if (rounds < 0 || rounds > 1000)
+    return bad("rounds " + std::to_string(rounds) + ": expected 0..1000");
+  if (projection_steps < 1 || projection_steps > 100)
+    return bad("projection_steps " + std::to_string(projection_steps) +
+               ": expected 1..100");
+  if (!(sigma > 0 && sigma <= 1))
+    return bad("sigma " + std::to_string(sigma) + ": expected (0, 1]");
+  if (!(contact_angle_degrees > 0 && contact_angle_degrees <= 180))
+    return bad("contact_angle_degrees " +
+               std::to_string(contact_angle_degrees) + ": expected (0, 180]");
+  if (!(tolerance > 0 && tolerance < 1))
+    return bad("tolerance " + std::to_string(tolerance) +
+               ": expected field units in (0, 1)");
+  if (!(max_step > 0 && max_step <= 1))
+    return bad("max_step " + std::to_string(max_step) +
+               ": expected a fraction of the diagonal in (0, 1]");
+  if (!(contact_gap >= 0 && contact_gap < 0.5f))
+    return bad("contact_gap " + std::to_string(contact_gap) +
+               ": expected field units in [0, 0.5)");
+  if (!(min_gradient >= 0 && std::isfinite(min_gradient)))
+    return bad("min_gradient " + std::to_string(min_gradient) +
+               ": expected >= 0");
+  if (beta_diffusion < 0 || beta_diffusion > 1000)
+    return bad("beta_diffusion " + std::to_string(beta_diffusion) +
+               ": expected 0..1000");
+  if (!(smoothing_radius >= 0 && smoothing_radius <= 1))
+    return bad("smoothing_radius " + std::to_string(smoothing_radius) +
+               ": expected a fraction of the diagonal in [0, 1]");
+  if (smoothing_steps < 0 || smoothing_steps > 1000)
+    return bad("smoothing_steps " + std::to_string(smoothing_steps) +
+               ": expected 0..1000");
+  if (crease_diffusion < 0 || crease_diffusion > 1000)
+    return bad("crease_diffusion " + std::to_string(crease_diffusion) +
+               ": expected 0..1000");
+  if (crease_steps < 0 || crease_steps > 1000)
+    return bad("crease_steps " + std::to_string(crease_steps) +
+               ": expected 0..1000");
+  if (neighbourhood_cells < 0 || neighbourhood_cells > 16)
+    return bad("neighbourhood_cells " + std::to_string(neighbourhood_cells) +
+               ": expected 0 (the device's choice) to 16");
+  return Validation::ok();
+}
+
+const char* trackStateName(TrackState state) {
+  switch (state) {
+    case TrackState::kMarching:
+      return "marching";
+    case TrackState::kConverged:
+      return "converged";
+    case TrackState::kContact:
+      return "contact";
+    case TrackState::kLost:
+      return "lost";
+    case TrackState::kUntracked:
+      return "untracked";
+    case TrackState::kCrease:
+      return "crease";
+  }
+  return "?";
+}
+
+int TrackingMesh::trackedCount() const {
+  int count = 0;
+  for (int v = 0; v < vertexCount(); ++v)
+    if (iso_values[v] > 0 && rings.representative[v] == v) ++count;
+  return count;
+}
+
+TrackingMesh TrackingMesh::build(const Mesh& mesh,
+                                 const ImplicitFields& fields) {
+  const std::vector<float>& iso_values = fields.iso_values;
+  mesh.validate().throwIfFailed("surface tracking");
+  if (static_cast<int>(iso_values.size()) != mesh.vertexCount())
+    throw Error(ErrorCode::kInvalidArgument,
+                "surface tracking: " + std::to_string(iso_values.size()) +
+                    " iso values for " + std::to_string(mesh.vertexCount()) +
+                    " vertices");
+  for (size_t v = 0; v < iso_values.size(); ++v)
+    if (!(iso_values[v] >= 0 && iso_values[v] <= 1))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "surface tracking: vertex " + std::to_string(v) + " (" +
+                      mesh.describeVertex(static_cast<int>(v)) +
+                      ") has iso value " + std::to_string(iso_values[v]) +
+                      ", expected [0, 1]");
+  TrackingMesh out;
+  out.rings = OneRings::build(mesh.positions, mesh.triangles);
+  out.relaxation = RelaxationWeights::build(out.rings, mesh.positions);
+  out.iso_values = iso_values;
+  out.triangles = mesh.triangles;
+  out.diagonal = boundingBoxDiagonal(mesh.positions);
+  out.ring_lengths.resize(out.rings.neighbours.size());
+  for (int v = 0; v < mesh.vertexCount(); ++v)
+    for (uint32_t i = out.rings.offsets[v]; i < out.rings.offsets[v + 1]; ++i)
+      out.ring_lengths[i] =
+          (mesh.positions.row(out.rings.neighbours[i]) - mesh.positions.row(v))
+              .norm();
+
+  // Normal adjacency over the welded mesh: a vertex gathers the triangles
+  // of every vertex of its group whose rest normal agrees with its own.
+  const int vertex_count = mesh.vertexCount();
+  const VertexTriangleAdjacency plain =
+      VertexTriangleAdjacency::build(mesh.triangles, vertex_count);
+  std::vector<std::vector<int>> members(vertex_count);
+  for (int v = 0; v < vertex_count; ++v)
+    members[out.rings.representative[v]].push_back(v);
+  out.normal_adjacency.offsets.assign(vertex_count + 1, 0);
+  for (int v = 0; v < vertex_count; ++v) {
+    out.normal_adjacency.offsets[v] =
+        static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+    const Eigen::Vector3f n = mesh.normals.row(v).transpose();
+    for (int u : members[out.rings.representative[v]]) {
+      if (u != v && !(mesh.normals.row(u).dot(n) >= kSameNormalCos)) continue;
+      out.normal_adjacency.triangles.insert(
+          out.normal_adjacency.triangles.end(),
+          plain.triangles.begin() + plain.offsets[u],
+          plain.triangles.begin() + plain.offsets[u + 1]);
+    }
+  }
+  out.normal_adjacency.offsets[vertex_count] =
+      static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+
+  // Home fields, partner pairs and the rest margins.
+  const int field_count = fields.grids.fieldCount();
+  out.field_count = field_count;
+  for (const int k : fields.composition.blended_pairs) {
+    const FieldPair& pair = fields.composition.pairs.at(k);
+    PartnerPair partner;
+    partner.field_a = pair.field_a;
+    partner.field_b = pair.field_b;
+    partner.joint_a = fields.grids.grids.at(pair.field_a).joint;
+    partner.joint_b = fields.grids.grids.at(pair.field_b).joint;
+    partner.blend = pair.op == CompositionOperator::kBlend;
+    out.partner_pairs.push_back(partner);
+  }
+  out.home_field.assign(vertex_count, -1);
+  out.home_margin.assign(vertex_count, 0.f);
+  const std::vector<int>& vertex_joint = fields.partition.vertex_joint;
+  if (static_cast<int>(vertex_joint.size()) == vertex_count &&
+      field_count > 0) {
+    for (int v = 0; v < vertex_count; ++v) {
+      const int joint = vertex_joint[v];
+      if (joint >= 0 &&
+          joint < static_cast<int>(fields.grids.field_of_joint.size()))
+        out.home_field[v] = fields.grids.field_of_joint[joint];
+    }
+    int joint_count = 0;
+    for (const FieldGrid& g : fields.grids.grids)
+      joint_count = std::max(joint_count, g.joint + 1);
+    const TransformList identity(joint_count, Eigen::Affine3f::Identity());
+    const ComposedFieldSampler sampler(fields.grids, identity,
+                                       &fields.composition);
+    std::vector<Eigen::Vector4f> per_field(field_count);
+    for (int v = 0; v < vertex_count; ++v) {
+      if (out.home_field[v] < 0) continue;
+      sampler.sample(mesh.positions.row(v).transpose(), per_field.data());
+      const HomeSamples home = homeSamples(out, nullptr, v, per_field.data());
+      out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
+    }
+  }
+  // The tracked vertices by home field, then along a Morton curve of their
+  // rest positions: neighbouring work-items sample the same grids near the
+  // same nodes (cache reuse) and walk the same neighbourhood list.
+  const Eigen::Vector3f lo = mesh.positions.colwise().minCoeff();
+  const Eigen::Vector3f extent =
+      (mesh.positions.colwise().maxCoeff().transpose() - lo)
+          .cwiseMax(Eigen::Vector3f::Constant(1e-20f));
+  auto spread = [](uint64_t x) {  // 21 bits -> every third bit
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    x = (x | x << 2) & 0x1249249249249249ULL;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, int>> keyed;
+  for (int v = 0; v < vertex_count; ++v) {
+    if (!(out.iso_values[v] > 0) || out.rings.representative[v] != v) continue;
+    const Eigen::Vector3f t =
+        (mesh.positions.row(v).transpose() - lo).cwiseQuotient(extent);
+    uint64_t code = 0;
+    for (int a = 0; a < 3; ++a)
+      code |=
+          spread(static_cast<uint64_t>(std::clamp(t[a], 0.f, 1.f) * 1048575.f))
+          << a;
+    keyed.emplace_back(code, v);
+  }
+  std::stable_sort(
+      keyed.begin(), keyed.end(), [&](const auto& a, const auto& b) {
+        const int ha = out.home_field[a.second], hb = out.home_field[b.second];
+        return ha != hb ? ha < hb : a.first < b.first;
+      });
+  out.march_order.reserve(keyed.size());
+  for (const auto& k : keyed) out.march_order.push_back(k.second);
+  return out;
+}
+
+TrackingLengths trackingLengths(const TrackingMesh& mesh,
+                                const SurfaceTrackingOptions& options) {
+  const int n = mesh.vertexCount();
+  if (!mesh.vertex_diagonals.empty() &&
+      static_cast<int>(mesh.vertex_diagonals.size()) != n)
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "surface tracking: " + std::to_string(mesh.vertex_diagonals.size()) +
+            " vertex diagonals for " + std::to_string(n) + " vertices");
+  TrackingLengths out;
+  out.max_step.resize(n);
+  out.min_gradient.resize(n);
+  out.smoothing_radius.resize(n);
+  for (int v = 0; v < n; ++v) {
+    const float diagonal = mesh.diagonalOf(v);
+    out.max_step[v] = options.max_step * diagonal;
+    out.min_gradient[v] =
+        diagonal > 0 ? options.min_gradient / diagonal : options.min_gradient;
+    out.smoothing_radius[v] = options.smoothing_radius * diagonal;
+  }
+  return out;
+}
+
+std::vector<int> activePartners(const TrackingMesh& mesh,
+                                const TransformList& skinning) {
+  constexpr int kMax = TrackingMesh::kMaxPartners;
+  std::vector<int> partners(static_cast<size_t>(mesh.field_count) * kMax, -1);
+  auto add = [&](int field, int partner) {
+    int* row = &partners[static_cast<size_t>(field) * kMax];
+    for (int k = 0; k < kMax; ++k) {
+      if (row[k] < 0 || row[k] == partner) {
+        row[k] = partner;
+        return;
+      }
+    }
+  };
+  for (const TrackingMesh::PartnerPair& pair : mesh.partner_pairs) {
+    if (!pair.blend) continue;
+    // The joint's rotation from its bind pose, as pairJointAngles has it.
+    const Eigen::Quaternionf a(skinning.at(pair.joint_a).rotation());
+    const Eigen::Quaternionf b(skinning.at(pair.joint_b).rotation());
+    const Eigen::Quaternionf relative = a.conjugate() * b;
+    const float angle =
+        2.f * std::atan2(relative.vec().norm(), std::abs(relative.w()));
+    if (!(angle < static_cast<float>(M_PI) / 2)) continue;
+    add(pair.field_a, pair.field_b);
+    add(pair.field_b, pair.field_a);
+  }
+  return partners;
+}
+
+namespace {
+
+// The 8 corners and 3 edge directions of grid's support box (grown by
+// margin of its size per side) in model space.
+struct PosedBox {
+  Eigen::Vector3f corners[8];
+  Eigen::Vector3f edges[3];
+  Eigen::Vector3f lo, hi;  // the corners' axis-aligned bounds
+};
+
+PosedBox posedBox(const FieldGrid& grid, const Eigen::Affine3f& to_bone,
+                  float margin) {
+  const Eigen::Affine3f to_model = to_bone.inverse(Eigen::Affine);
+  const Eigen::Vector3f grow = margin * (grid.box_max - grid.box_min);
+  const Eigen::Vector3f lo = grid.box_min - grow;
+  const Eigen::Vector3f hi = grid.box_max + grow;
+  PosedBox out;
+  for (int c = 0; c < 8; ++c)
+    out.corners[c] = to_model * Eigen::Vector3f(c & 1 ? hi.x() : lo.x(),
+                                                c & 2 ? hi.y() : lo.y(),
+                                                c & 4 ? hi.z() : lo.z());
+  for (int e = 0; e < 3; ++e) out.edges[e] = to_model.linear().col(e);
+  out.lo = out.hi = out.corners[0];
+  for (int c = 1; c < 8; ++c) {
+    out.lo = out.lo.cwiseMin(out.corners[c]);
+    out.hi = out.hi.cwiseMax(out.corners[c]);
+  }
+  return out;
+}
+
+bool separatedAlong(const PosedBox& a, const PosedBox& b,
+                    const Eigen::Vector3f& axis) {
+  if (!(axis.squaredNorm() > 1e-20f)) return false;  // degenerate axis
+  float a_lo = a.corners[0].dot(axis), a_hi = a_lo;
+  float b_lo = b.corners[0].dot(axis), b_hi = b_lo;
+  for (int c = 1; c < 8; ++c) {
+    const float pa = a.corners[c].dot(axis);
+    const float pb = b.corners[c].dot(axis);
+    a_lo = std::min(a_lo, pa);
+    a_hi = std::max(a_hi, pa);
+    b_lo = std::min(b_lo, pb);
+    b_hi = std::max(b_hi, pb);
+  }
+  return a_hi < b_lo || b_hi < a_lo;
+}
+
+bool boxesMeet(const PosedBox& a, const PosedBox& b) {
+  // Boxes whose bounds are apart do not meet: most pairs of a crowd's
+  // fields (isk/implicit_crowd.hpp) are settled here, before the 15 axes.
+  if ((a.hi.array() < b.lo.array()).any() ||
+      (b.hi.array() < a.lo.array()).any())
+    return false;
+  // Separating axes of two parallelepipeds: the face normals of each and
+  // the cross products of their edges.
+  for (const PosedBox* box : {&a, &b})
+    for (int e = 0; e < 3; ++e)
+      if (separatedAlong(
+              a, b, box->edges[(e + 1) % 3].cross(box->edges[(e + 2) % 3])))
+        return false;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (separatedAlong(a, b, a.edges[i].cross(b.edges[j]))) return false;
+  return true;
+}
+
+}  // namespace
+
+bool posedBoxesMeet(const FieldGrid& a, const Eigen::Affine3f& a_to_bone,
+                    const FieldGrid& b, const Eigen::Affine3f& b_to_bone,
+                    float margin) {
+  return boxesMeet(posedBox(a, a_to_bone, margin),
+                   posedBox(b, b_to_bone, margin));
+}
+
+double FieldNeighbourhoods::meanListed() const {
+  if (offsets.size() < 2) return 0;
+  return static_cast<double>(entries.size()) / (offsets.size() - 1);
+}
+
+FieldNeighbourhoods fieldNeighbourhoods(
+    const TrackingMesh& mesh, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<int>& partners) {
+  const int field_count = grids.fieldCount();
+  if (static_cast<int>(to_bone.size()) != field_count)
+    throw Error(ErrorCode::kInvalidArgument,
+                "fieldNeighbourhoods: " + std::to_string(to_bone.size()) +
+                    " transforms for " + std::to_string(field_count) +
+                    " fields");
+  if (field_count > FieldNeighbourhoods::kFieldMask)
+    throw Error(ErrorCode::kInvalidArgument,
+                "fieldNeighbourhoods: " + std::to_string(field_count) +
+                    " fields, at most " +
+                    std::to_string(FieldNeighbourhoods::kFieldMask));
+  constexpr int kMax = TrackingMesh::kMaxPartners;
+  const bool with_partners =
+      partners.size() == static_cast<size_t>(field_count) * kMax;
+  std::vector<PosedBox> boxes;
+  boxes.reserve(field_count);
+  for (int i = 0; i < field_count; ++i)
+    boxes.push_back(posedBox(grids.grids[i], to_bone[i], 1e-3f));
+  // Sweep and prune along x: boxes sorted by their lowest x, each tested
+  // only against those that start before it ends (a box starting later is
+  // apart from it along x, which boxesMeet would find first). A bound that
+  // is not a number (a pose past float range) prunes nothing.
+  auto low_x = [&](int i) {
+    const float x = boxes[i].lo.x();
+    return std::isnan(x) ? -std::numeric_limits<float>::infinity() : x;
+  };
+  auto high_x = [&](int i) {
+    const float x = boxes[i].hi.x();
+    return std::isnan(x) ? std::numeric_limits<float>::infinity() : x;
+  };
+  std::vector<int> by_low_x(field_count);
+  for (int i = 0; i < field_count; ++i) by_low_x[i] = i;
+  std::sort(by_low_x.begin(), by_low_x.end(), [&](int a, int b) {
+    return low_x(a) < low_x(b) || (low_x(a) == low_x(b) && a < b);
+  });
+  std::vector<std::vector<int>> listed(field_count);
+  for (int a = 0; a < field_count; ++a) {
+    const int h = by_low_x[a];
+    listed[h].push_back(h);
+    const float end = high_x(h);
+    for (int b = a + 1; b < field_count && !(low_x(by_low_x[b]) > end); ++b) {
+      const int i = by_low_x[b];
+      if (boxesMeet(boxes[std::min(h, i)], boxes[std::max(h, i)])) {
+        listed[h].push_back(i);
+        listed[i].push_back(h);
+      }
+    }
+  }
+  // The blended pairs by their first field.
+  std::vector<std::vector<int>> pairs_of(field_count);
+  for (size_t k = 0; k < mesh.partner_pairs.size(); ++k) {
+    const TrackingMesh::PartnerPair& pair = mesh.partner_pairs[k];
+    if (pair.field_a >= 0 && pair.field_a < field_count && pair.field_b >= 0 &&
+        pair.field_b < field_count)
+      pairs_of[pair.field_a].push_back(static_cast<int>(k));
+  }
+  std::vector<int> listed_in(field_count, -1);  // h whose list holds it
+  FieldNeighbourhoods out;
+  out.offsets.assign(1, 0);
+  out.pair_offsets.assign(1, 0);
+  for (int h = 0; h < field_count; ++h) {
+    std::vector<int>& fields = listed[h];
+    std::sort(fields.begin(), fields.end());
+    for (const int i : fields) {
+      listed_in[i] = h;
+      bool partner = i == h;
+      for (int k = 0; with_partners && k < kMax; ++k)
+        partner = partner || partners[static_cast<size_t>(h) * kMax + k] == i;
+      out.entries.push_back(partner ? i | FieldNeighbourhoods::kPartner : i);
+    }
+    out.offsets.push_back(static_cast<int>(out.entries.size()));
+    const size_t first_pair = out.pairs.size();
+    for (const int a : fields)
+      for (const int k : pairs_of[a])
+        if (listed_in[mesh.partner_pairs[k].field_b] == h)
+          out.pairs.push_back(k);
+    std::sort(out.pairs.begin() + first_pair, out.pairs.end());
+    out.pair_offsets.push_back(static_cast<int>(out.pairs.size()));
+  }
+  return out;
+}
+
+void splitNeighbourhoodsIntoCells(
+    FieldNeighbourhoods& neighbourhoods, const FieldGridSet& grids,
+    const std::vector<Eigen::Affine3f>& to_bone,
+    const std::vector<Eigen::AlignedBox3f>& occupied_boxes,
+    int cells_per_axis) {
+  if (cells_per_axis < 1 || cells_per_axis > 16)
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "splitNeighbourhoodsIntoCells: " + std::to_string(cells_per_axis) +
+            " cells per axis, expected 1 to 16");
+  const int per_axis = cells_per_axis;
+  const int cell_count = per_axis * per_axis * per_axis;
+  const int field_count =
+      static_cast<int>(std::max<size_t>(neighbourhoods.offsets.size(), 1)) - 1;
+  if (grids.fieldCount() != field_count ||
+      static_cast<int>(to_bone.size()) != field_count ||
+      static_cast<int>(occupied_boxes.size()) != field_count)
+    throw Error(ErrorCode::kInvalidArgument,
+                "splitNeighbourhoodsIntoCells: neighbourhoods of " +
+                    std::to_string(field_count) + " fields, " +
+                    std::to_string(grids.fieldCount()) + " grids, " +
+                    std::to_string(to_bone.size()) + " transforms, " +
+                    std::to_string(occupied_boxes.size()) + " occupied boxes");
+  // Each occupied box's corners in model space, grown by 1e-3 of its grid's
+  // support box per side.
+  std::vector<std::array<Eigen::Vector3f, 8>> corners(field_count);
+  for (int i = 0; i < field_count; ++i) {
+    const Eigen::AlignedBox3f& box = occupied_boxes[i];
+    if (box.isEmpty()) continue;
+    const FieldGrid& g = grids.grids[i];
+    const Eigen::Vector3f grow = 1e-3f * (g.box_max - g.box_min).cwiseAbs();
+    const Eigen::Vector3f lo = box.min() - grow, hi = box.max() + grow;
+    const Eigen::Affine3f to_model = to_bone[i].inverse();
+    for (int c = 0; c < 8; ++c)
+      corners[i][c] = to_model * Eigen::Vector3f(c & 1 ? hi.x() : lo.x(),
+                                                 c & 2 ? hi.y() : lo.y(),
+                                                 c & 4 ? hi.z() : lo.z());
+  }
+  neighbourhoods.cells_per_axis = cells_per_axis;
+  std::vector<int>& offsets = neighbourhoods.cell_offsets;
+  std::vector<int>& entries = neighbourhoods.cell_entries;
+  offsets.assign(1, 0);
+  entries.clear();
+  std::vector<std::vector<int>> cells(cell_count);
+  for (int h = 0; h < field_count; ++h) {
+    for (auto& cell : cells) cell.clear();
+    const FieldGrid& g = grids.grids[h];
+    const Eigen::Vector3f extent = g.box_max - g.box_min;
+    for (int n = neighbourhoods.offsets[h]; n < neighbourhoods.offsets[h + 1];
+         ++n) {
+      const int entry = neighbourhoods.entries[n];
+      const int i = entry & FieldNeighbourhoods::kFieldMask;
+      if (i >= field_count || occupied_boxes[i].isEmpty()) continue;  // 0
+      // The box in h's cell units (per_axis cells along each axis of h's box).
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(
+                          std::numeric_limits<float>::infinity()),
+                      hi = -lo;
+      for (const Eigen::Vector3f& corner : corners[i]) {
+        const Eigen::Vector3f q =
+            (to_bone[h] * corner - g.box_min).cwiseQuotient(extent) *
+            static_cast<float>(per_axis);
+        lo = lo.cwiseMin(q);
+        hi = hi.cwiseMax(q);
+      }
+      int first[3], last[3];
+      bool meets = true;
+      for (int a = 0; a < 3; ++a) {
+        if (!(std::isfinite(lo[a]) && std::isfinite(hi[a]))) {
+          first[a] = 0;  // no bound: every cell
+          last[a] = per_axis - 1;
+          continue;
+        }
+        // 1e-3 of h's box (per_axis cells) on either side.
+        const float margin = 1e-3f * static_cast<float>(per_axis);
+        const float from = std::floor(lo[a] - margin);
+        const float to = std::floor(hi[a] + margin);
+        if (to < 0.f || from > static_cast<float>(per_axis - 1)) meets = false;
+        first[a] = static_cast<int>(std::max(from, 0.f));
+        last[a] =
+            static_cast<int>(std::min(to, static_cast<float>(per_axis - 1)));
+      }
+      if (!meets) continue;
+      for (int z = first[2]; z <= last[2]; ++z)
+        for (int y = first[1]; y <= last[1]; ++y)
+          for (int x = first[0]; x <= last[0]; ++x)
+            cells[x + per_axis * (y + per_axis * z)].push_back(entry);
+    }
+    for (const auto& cell : cells) {
+      entries.insert(entries.end(), cell.begin(), cell.end());
+      offsets.push_back(static_cast<int>(entries.size()));
+    }
+  }
+}
+
+HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
+                        int vertex, const Eigen::Vector4f* per_field) {
+  HomeSamples out;
+  const int home = mesh.home_field[vertex];
+  if (home < 0) return out;
+  out.home = per_field[home];
+  const int* row = partners ? partners + static_cast<size_t>(home) *
+                                             TrackingMesh::kMaxPartners
+                            : nullptr;
+  for (int i = 0; i < mesh.field_count; ++i) {
+    if (i == home) continue;
+    bool partner = false;
+    for (int k = 0; row && k < TrackingMesh::kMaxPartners; ++k)
+      partner = partner || row[k] == i;
+    if (partner) continue;
+    if (per_field[i][0] > out.other[0]) out.other = per_field[i];
+  }
+  return out;
+}
+
+TrackingCounts countStates(const std::vector<TrackState>& states) {
+  TrackingCounts c;
+  for (TrackState s : states) {
+    switch (s) {
+      case TrackState::kMarching:
+        ++c.marching;
+        break;
+      case TrackState::kConverged:
+        ++c.converged;
+        break;
+      case TrackState::kContact:
+        ++c.contact;
+        break;
+      case TrackState::kLost:
+        ++c.lost;
+        break;
+      case TrackState::kUntracked:
+        ++c.untracked;
+        break;
+      case TrackState::kCrease:
+        ++c.crease;
+        break;
+    }
+  }
+  return c;
+}
+
+CpuSurfaceTracking::CpuSurfaceTracking(const FieldGridSet& fields,
+                                       const Composition* composition,
+                                       const TrackingMesh& mesh,
+                                       const SurfaceTrackingOptions& options)
+    : fields_(&fields),
+      composition_(composition),
+      mesh_(&mesh),
+      options_(options) {
+  options.validate().throwIfFailed("SurfaceTrackingOptions");
+  if (mesh.rings.vertexCount() != mesh.vertexCount() ||
+      mesh.relaxation.rules.size() != mesh.iso_values.size())
+    throw Error(ErrorCode::kInvalidArgument,
+                "CpuSurfaceTracking: the tracking mesh is inconsistent (built "
+                "by TrackingMesh::build?)");
+  lengths_ = trackingLengths(mesh, options);
+}
+
+void CpuSurfaceTracking::checkBegun(const char* stage) const {
+  if (!begun_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("CpuSurfaceTracking::") + stage +
+                    " before begin(): no frame has been started (no pose, "
+                    "no positions)");
+}
+
+void CpuSurfaceTracking::begin(const TransformList& skinning,
+                               const Matrix3Xf& skinned_positions,
+                               const Matrix3Xf& skinned_normals) {
+  const int n = mesh_->vertexCount();
+  if (skinned_positions.rows() != n || skinned_normals.rows() != n)
+    throw Error(ErrorCode::kInvalidArgument,
+                "CpuSurfaceTracking::begin: " +
+                    std::to_string(skinned_positions.rows()) +
+                    " positions and " + std::to_string(skinned_normals.rows()) +
+                    " normals for a mesh of " + std::to_string(n) +
+                    " vertices");
+  for (const FieldGrid& g : fields_->grids)
+    if (g.joint < 0 || g.joint >= static_cast<int>(skinning.size()))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "CpuSurfaceTracking::begin: a field belongs to joint " +
+                      std::to_string(g.joint) + " but " +
+                      std::to_string(skinning.size()) +
+                      " transforms were given");
+  skinning_ = skinning;
+  partners_ = activePartners(*mesh_, skinning);
+  neighbourhoods_ = fieldNeighbourhoods(
+      *mesh_, *fields_, fieldTransforms(*fields_, skinning), partners_);
+  positions_ = skinned_positions;
+  fallback_normals_ = skinned_normals;
+  states_.resize(n);
+  prev_.setZero(n, 4);
+  relax_frames_.setZero(n, 4);
+  for (int v = 0; v < n; ++v)
+    states_[v] = mesh_->iso_values[v] > 0 && mesh_->rings.representative[v] == v
+                     ? TrackState::kMarching
+                     : TrackState::kUntracked;
+  beta_.assign(2 * static_cast<size_t>(n), 0.f);
+  times_ = {};
+  begun_ = true;
+}
+
+void CpuSurfaceTracking::setState(const Matrix3Xf& positions,
+                                  const std::vector<TrackState>& states,
+                                  const Matrix4Xf& prev_gradients,
+                                  const Matrix4Xf* relax_frames) {
+  checkBegun("setState");
+  const int n = mesh_->vertexCount();
+  if (positions.rows() != n || static_cast<int>(states.size()) != n ||
+      prev_gradients.rows() != n || (relax_frames && relax_frames->rows() != n))
+    throw Error(ErrorCode::kInvalidArgument,
+                "CpuSurfaceTracking::setState: expected " + std::to_string(n) +
+                    " rows");
+  positions_ = positions;
+  states_ = states;
+  prev_ = prev_gradients;
+  if (relax_frames) relax_frames_ = *relax_frames;
+}
+
+Eigen::Vector4f CpuSurfaceTracking::sampleAt(
+    const ComposedFieldSampler& sampler, int v, const Eigen::Vector3f& x,
+    Eigen::Vector4f* per_field, HomeSamples* home) const {
+  const int h = mesh_->home_field[v];
+  if (options_.field_neighbourhoods && h >= 0 && h < sampler.fieldCount() &&
+      sampler.insideBox(h, x)) {
+    const FieldNeighbourhoods& nb = neighbourhoods_;
+    const int* list = nb.entries.data() + nb.offsets[h];
+    const int count = nb.offsets[h + 1] - nb.offsets[h];
+    const Eigen::Vector4f sample = sampler.sampleSubset(
+        x, list, count, FieldNeighbourhoods::kFieldMask, per_field);
+    if (home) {
+      *home = HomeSamples();
+      home->home = per_field[h];
+      for (int n = 0; n < count; ++n) {
+        const int i = list[n] & FieldNeighbourhoods::kFieldMask;
+        if (!(list[n] & FieldNeighbourhoods::kPartner) &&
+            per_field[i][0] > home->other[0])
+          home->other = per_field[i];
+      }
+    }
+    return sample;
+  }
+  const Eigen::Vector4f sample = sampler.sample(x, per_field);
+  if (home) *home = homeSamples(*mesh_, partners_.data(), v, per_field);
+  return sample;
+}
+
+void CpuSurfaceTracking::project(int steps) {
+  checkBegun("project");
+  const auto start = std::chrono::steady_clock::now();
+  const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
+  const float cos_contact = std::cos(options_.contact_angle_degrees *
+                                     static_cast<float>(M_PI) / 180.f);
+  const int n = mesh_->vertexCount();
+  std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
+  for (int v = 0; v < n; ++v) {
+    const float max_step = lengths_.max_step[v];
+    const float min_gradient = lengths_.min_gradient[v];
+    for (int s = 0; s < steps; ++s) {
+      if (states_[v] != TrackState::kMarching) break;
+      Eigen::Vector3f x = positions_.row(v).transpose();
+      HomeSamples home;
+      const Eigen::Vector4f sample =
+          sampleAt(sampler, v, x, per_field.data(), &home);
+      const float f = sample[0];
+      const Eigen::Vector3f g = sample.tail<3>();
+      const float g_len = g.norm();
+      if (!(f > 0.f) || !(g_len > min_gradient)) {
+        states_[v] = TrackState::kLost;
+        break;
+      }
+      const float iso = mesh_->iso_values[v];
+      float entered = 0.f;  // how far another part's field exceeds home
+      if (options_.home_contact && mesh_->home_field[v] >= 0) {
+        entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
+        bool marching_to_contact = prev_(v, 3) == 2.f;
+        // Out of the other part's grip (left through the surface): back
+        // to the paper's march.
+        if (marching_to_contact && f < iso - options_.tolerance) {
+          marching_to_contact = false;
+          prev_(v, 3) = 0.f;
+        }
+        if (home.home[0] > 0.f &&
+            (marching_to_contact ||
+             (f > iso + options_.tolerance && entered > options_.tolerance))) {
+          const float c = entered + options_.contact_gap;
+          if (marching_to_contact && c <= options_.tolerance) {
+            states_[v] = TrackState::kContact;
+            break;
+          }
+          const Eigen::Vector3f gc = (home.other - home.home).tail<3>();
+          const float gc_len = gc.norm();
+          if (!(gc_len > min_gradient)) {
+            states_[v] = TrackState::kLost;
+            break;
+          }
+          prev_(v, 3) = 2.f;
+          // The relaxation's surface: the contact surface c = 0.
+          relax_frames_.row(v) << c, gc.x() / gc_len, gc.y() / gc_len,
+              gc.z() / gc_len;
+          const float length =
+              std::clamp(-options_.sigma * c / gc_len, -max_step, max_step);
+          x += length * (gc / gc_len);
+          positions_.row(v) = x.transpose();
+          continue;
+        }
+      }
+      const Eigen::Vector3f unit = g / g_len;
+      if (prev_(v, 3) == 1.f &&
+          unit.dot(prev_.row(v).head<3>().transpose()) < cos_contact) {
+        states_[v] = TrackState::kContact;
+        break;
+      }
+      prev_.row(v) << unit.x(), unit.y(), unit.z(), 1.f;
+      const float d = iso - f;
+      if (std::abs(d) < options_.tolerance) {
+        // On another part's surface: a crease between parts, smoothed
+        // like a contact.
+        states_[v] = entered > options_.tolerance ? TrackState::kCrease
+                                                  : TrackState::kConverged;
+        break;
+      }
+      relax_frames_.row(v) << f - iso, unit.x(), unit.y(), unit.z();
+      float length = options_.sigma * d / g_len;  // signed step along unit
+      length = std::clamp(length, -max_step, max_step);
+      x += length * unit;
+      positions_.row(v) = x.transpose();
+    }
+  }
+  times_.projection_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::relax() {
+  checkBegun("relax");
+  const auto start = std::chrono::steady_clock::now();
+  const int n = mesh_->vertexCount();
+  scratch_ = positions_;
+  const OneRings& rings = mesh_->rings;
+  const RelaxationWeights& relaxation = mesh_->relaxation;
+  for (int v = 0; v < n; ++v) {
+    if (states_[v] != TrackState::kMarching ||
+        relaxation.rules[v] == RelaxationRule::kFixed)
+      continue;
+    // The surface the vertex marches to (its iso-surface, or the contact
+    // surface while it marches to a contact) as its last projection step
+    // sampled it: signed distance and unit normal.
+    const Eigen::Vector4f frame = relax_frames_.row(v).transpose();
+    const Eigen::Vector3f unit = frame.tail<3>();
+    if (!(unit.squaredNorm() > 0.f)) continue;  // no step this frame
+    const Eigen::Vector3f x = positions_.row(v).transpose();
+    const float t = std::abs(frame[0]) - 1.f;
+    const float mu = std::max(0.f, 1.f - t * t * t * t);
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+      centroid += relaxation.weights[i] *
+                  positions_.row(rings.neighbours[i]).transpose();
+    Eigen::Vector3f d = centroid - x;
+    d -= d.dot(unit) * unit;
+    scratch_.row(v) = (x + mu * d).transpose();
+  }
+  positions_.swap(scratch_);
+  times_.relaxation_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::smooth() {
+  checkBegun("smooth");
+  const auto start = std::chrono::steady_clock::now();
+  const int n = mesh_->vertexCount();
+  const OneRings& rings = mesh_->rings;
+  beta_.assign(2 * static_cast<size_t>(n), 0.f);
+  for (int v = 0; v < n; ++v) {
+    beta_[2 * v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
+    beta_[2 * v + 1] = states_[v] == TrackState::kCrease ? 1.f : 0.f;
+  }
+  const int diffusions =
+      std::max(options_.beta_diffusion, options_.crease_diffusion);
+  for (int k = 0; k < diffusions; ++k) {
+    const bool channel[2] = {k < options_.beta_diffusion,
+                             k < options_.crease_diffusion};
+    beta_scratch_ = beta_;
+    for (int v = 0; v < n; ++v) {
+      if (rings.kinds[v] == RingKind::kDuplicate) continue;
+      const float radius = lengths_.smoothing_radius[v];
+      float count = 1.f;
+      for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+        count += mesh_->ring_lengths[i] <= radius ? 1.f : 0.f;
+      for (int c = 0; c < 2; ++c) {
+        // Sources stay at 1.
+        if (!channel[c] || (c == 0 && states_[v] == TrackState::kContact) ||
+            (c == 1 && states_[v] == TrackState::kCrease))
+          continue;
+        float sum = beta_[2 * v + c];
+        for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+          if (mesh_->ring_lengths[i] <= radius)
+            sum += beta_[2 * static_cast<size_t>(rings.neighbours[i]) + c];
+        beta_scratch_[2 * v + c] = sum / count;
+      }
+    }
+    beta_.swap(beta_scratch_);
+  }
+  const int steps = std::max(options_.smoothing_steps, options_.crease_steps);
+  for (int k = 0; k < steps; ++k) {
+    scratch_ = positions_;
+    for (int v = 0; v < n; ++v) {
+      const float b = k < options_.smoothing_steps ? beta_[2 * v] : 0.f;
+      const float c = k < options_.crease_steps ? beta_[2 * v + 1] : 0.f;
+      if (!(b > 0.f || c > 0.f) ||
+          mesh_->relaxation.rules[v] == RelaxationRule::kFixed)
+        continue;
+      const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
+      const float radius = lengths_.smoothing_radius[v];
+      const Eigen::Vector3f x = positions_.row(v).transpose();
+      Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+      int near = 0;
+      for (uint32_t i = begin; i < end; ++i) {
+        if (!(mesh_->ring_lengths[i] <= radius)) continue;
+        centroid += positions_.row(rings.neighbours[i]).transpose();
+        ++near;
+      }
+      if (near == 0) continue;
+      centroid /= static_cast<float>(near);
+      const Eigen::Vector3f d = centroid - x;
+      Eigen::Vector3f tangential = Eigen::Vector3f::Zero();
+      if (c > 0.f && rings.kinds[v] == RingKind::kClosed) {
+        // The ring's area-weighted normal at the current positions.
+        Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+        for (uint32_t i = begin; i < end; ++i) {
+          const uint32_t j = i + 1 < end ? i + 1 : begin;
+          normal +=
+              (positions_.row(rings.neighbours[i]).transpose() - x)
+                  .cross(positions_.row(rings.neighbours[j]).transpose() - x);
+        }
+        const float length = normal.norm();
+        if (length > 0.f && std::isfinite(length)) {  // inf: no direction
+          normal /= length;
+          tangential = d - d.dot(normal) * normal;
+        }
+      }
+      scratch_.row(v) = (x + b * d + (1.f - b) * c * tangential).transpose();
+    }
+    positions_.swap(scratch_);
+  }
+  times_.smoothing_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::finish() {
+  checkBegun("finish");
+  const auto start = std::chrono::steady_clock::now();
+  const int n = mesh_->vertexCount();
+  for (int v = 0; v < n; ++v) {
+    const int r = mesh_->rings.representative[v];
+    if (r != v) positions_.row(v) = positions_.row(r);
+  }
+  VertexNormalsJob job;
+  job.positions = &positions_;
+  job.triangles = &mesh_->triangles;
+  job.adjacency = &mesh_->normal_adjacency;
+  job.fallback_normals = &fallback_normals_;
+  job.out_normals = &normals_;
+  job.run();
+  times_.normals_ms += millisecondsSince(start);
+}
+
+void CpuSurfaceTracking::run(const TransformList& skinning,
+                             const Matrix3Xf& skinned_positions,
+                             const Matrix3Xf& skinned_normals) {
+  begin(skinning, skinned_positions, skinned_normals);
+  for (int r = 0; r < options_.rounds; ++r) {
+    project(options_.projection_steps);
+    if (options_.relaxation) relax();
+  }
+  smooth();
+  finish();
+}
+
+}  // namespace isk
