@@ -1,6 +1,6 @@
 // Baked implicit fields (isk/fields/field_grid.hpp) evaluated at posed points, and
 // their composition (isk/fields/field_composition.hpp: the max of every field and of
-// every blend or bulge pair, eq. 3). OpenCL C 1.2, self-contained. CPU
+// every blend or bulge pair, eq. 3). OpenCL C 1.2; includes abi.h. CPU
 // reference: lib/src/fields/field_grid.cpp (sampling), lib/src/fields/field_evaluation.cpp
 // (transforms, broad phase, composition), lib/src/fields/composition_operator.cpp
 // (operator tables, controllers) and lib/src/fields/field_composition.cpp
@@ -69,6 +69,8 @@
 // path, so that on a CPU device both agree to the last bits.
 #pragma OPENCL FP_CONTRACT OFF
 
+#include "abi.h"
+
 #ifndef ISK_FIELDS_IMAGE
 #define ISK_FIELDS_IMAGE 0
 #endif
@@ -78,8 +80,6 @@
 // from overlapping.
 #define ISK_INLINE inline __attribute__((always_inline))
 
-#define ISK_FIELD_PARAM_STRIDE 7
-#define ISK_CONTROLLER_SAMPLES 65
 
 // The trilinear interpolation of a cell's 8 corner values (cXYZ at
 // x, y, z in {0, 1}) at t in [0, 1]^3: along x, then y, then z, in the CPU

@@ -13,60 +13,53 @@
 // skinned positions into it and track_copy_duplicates scatters the results
 // back to the mesh's order.
 // Layout: positions are packed float triples (vload3/vstore3); one uchar
-// state per vertex (TRACK_* below); prev_gradients one float4 per vertex
+// state per vertex (ISK_TRACK_* of abi.h); prev_gradients one float4 per vertex
 // (xyz the unit gradient of the vertex's last projection step, w = 1 when
 // set); one-rings as compressed rows (ring_offsets, ring_neighbours,
 // ring_weights), and the same rows filtered to the neighbours within each
 // vertex's smoothing radius (near_offsets, near_neighbours); one uchar
-// relaxation rule per vertex (RULE_FIXED: neither relaxed nor smoothed).
+// relaxation rule per vertex (ISK_RULE_FIXED: neither relaxed nor smoothed).
 
 #include "fields.cl"
 
-#define TRACK_MARCHING 0
-#define TRACK_CONVERGED 1
-#define TRACK_CONTACT 2
-#define TRACK_LOST 3
-#define TRACK_UNTRACKED 4
-#define TRACK_CREASE 5
-#define RULE_FIXED 3
-#define RING_CLOSED 0
-#define MAX_PARTNERS 8
 // reach[v] (active vertices, track_beta_init): the first diffusion step at
-// which v may change; REACH_NONE: out of reach of every contact and crease.
-#define REACH_NONE 255
-#define REACH_MAX 254
+// which v may change; ISK_REACH_NONE (abi.h): out of reach of every contact
+// and crease.
 // Cells per axis of each home field's box in the cell lists (the host
 // passes its choice for the device: 1, the whole box, or more).
 #ifndef ISK_NEIGHBOUR_CELLS
 #define ISK_NEIGHBOUR_CELLS 4
 #endif
 
-// The contact by home field's data and the tracking broad phase (eight
-// consecutive kernel arguments, bound by ClSurfaceTracking::setContactArgs):
+// The contact by home field's data and the tracking broad phase
+// (ISK_CONTACT_ARG_COUNT consecutive kernel arguments, bound by
+// ClSurfaceTracking::setContactArgs):
 // each vertex's home field (-1: none) and rest margin; each field's partners
 // at this pose (activePartners: blend pairs turned by less than 90 degrees;
-// MAX_PARTNERS per field, -1 padded); the pose's field neighbourhoods
+// ISK_MAX_PARTNERS per field, -1 padded); the pose's field neighbourhoods
 // (fieldNeighbourhoods, split into cells by splitNeighbourhoodsIntoCells:
 // per home field h and cell c of its box, in
 // neighbour_entries[neighbour_offsets[h * ISK_NEIGHBOUR_CELLS^3 + c] ..
 // neighbour_offsets[... + 1]] the fields whose posed support box meets h's
-// and that can be non-zero in the cell, ascending, NEIGHBOUR_PARTNER set
+// and that can be non-zero in the cell, ascending, ISK_NEIGHBOUR_PARTNER set
 // on h and its partners; in neighbour_pairs[...pair_offsets[h]...] the
-// pairs both of whose fields are in h's neighbourhood); contact_params: x 1 when the contact by
-// home field is on (0: the paper's march only), y its gap in field units,
-// z 1 when the neighbourhoods are used (0: every field is sampled), w 1
-// when the projection skips fields by their value bounds (sample_tracking).
+// pairs both of whose fields are in h's neighbourhood); contact_gap: the
+// contact by home field's gap in field units; contact_flags: the
+// ISK_CONTACT_* bits of abi.h (the contact by home field, the
+// neighbourhoods, the value bounds of sample_tracking).
 #define ISK_TRACKING_PARAMS                                              \
   __global const int *home_fields, __global const float *home_margins,  \
       __global const int *partners, __global const int *neighbour_offsets, \
       __global const int *neighbour_entries,                             \
       __global const int *neighbour_pair_offsets,                        \
-      __global const int *neighbour_pairs, const float4 contact_params,  \
+      __global const int *neighbour_pairs, const float contact_gap,      \
+      const int contact_flags,                                           \
       __global const int *lane_offsets, __global const float8 *lane_params, \
       __global const uchar *lane_masks
 #define ISK_TRACKING_ARGS                                                \
   home_fields, home_margins, partners, neighbour_offsets, neighbour_entries, \
-      neighbour_pair_offsets, neighbour_pairs, contact_params, lane_offsets, \
+      neighbour_pair_offsets, neighbour_pairs, contact_gap, contact_flags, \
+      lane_offsets,                                                      \
       lane_params, lane_masks
 #ifndef ISK_LANE_TESTS
 #define ISK_LANE_TESTS 0
@@ -81,9 +74,6 @@
 // neighbour entry and 23 the grid (ints); a padding lane's sphere radius is
 // -1. lane_masks: per chunk and cell (chunk-major per home field: byte
 // (lane_offsets[h] * cells^3 + cell * chunks + k)) the lanes the cell lists.
-#define ISK_LANE_ROWS 24
-#define NEIGHBOUR_PARTNER 0x10000
-#define NEIGHBOUR_FIELD 0xffff
 
 // One listed field of sample_tracking (below) whose sphere and grid hold
 // the point, at node coordinates u in grid `grid` (the home field: its
@@ -94,7 +84,7 @@ ISK_INLINE void take_listed_field(
     const uint grid, const float3 u, const int home, const float4 home_sample,
     const bool bounded, const float other_limit, float4* best, float4* h,
     float4* other) {
-  const uint i = (uint)(entry & NEIGHBOUR_FIELD);
+  const uint i = (uint)(entry & ISK_NEIGHBOUR_FIELD);
   float4 s = home_sample;
   if ((int)i != home) {
     const uint b = field_cells[cell_index(grid, resolution, u)];
@@ -102,7 +92,7 @@ ISK_INLINE void take_listed_field(
     if (bounded && b < 255u) {
       const float bound = (float)b * (1.0f / 255.0f);
       if (bound < fmax(best->x, home_sample.x) &&
-          ((entry & NEIGHBOUR_PARTNER) || bound <= other_limit))
+          ((entry & ISK_NEIGHBOUR_PARTNER) || bound <= other_limit))
         return;  // changes nothing (see sample_tracking)
     }
     __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * i;
@@ -117,7 +107,7 @@ ISK_INLINE void take_listed_field(
   *best = compose_union(*best, s);
   if ((int)i == home)
     *h = s;
-  else if (!(entry & NEIGHBOUR_PARTNER))
+  else if (!(entry & ISK_NEIGHBOUR_PARTNER))
     *other = compose_union(*other, s);
 }
 
@@ -149,7 +139,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
   float4 other = (float4)(0.0f);
   bool listed = false;
   float3 home_u = (float3)(0.0f);
-  if (home >= 0 && contact_params.z > 0.0f) {
+  if (home >= 0 && (contact_flags & ISK_CONTACT_NEIGHBOURHOODS)) {
     home_u = field_node_coords(field_params, (uint)home, x);
     listed = inside_nodes(home_u, resolution);
   }
@@ -221,7 +211,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     const int end = neighbour_offsets[cell + 1];
     for (int n = neighbour_offsets[cell]; n < end; ++n) {
       const int entry = neighbour_entries[n];
-      const uint i = (uint)(entry & NEIGHBOUR_FIELD);
+      const uint i = (uint)(entry & ISK_NEIGHBOUR_FIELD);
       if (!inside_sphere(field_params, i, x)) continue;
       float3 u = home_u;
       uint grid = 0u;
@@ -257,8 +247,8 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
       continue;
     }
     bool partner = false;
-    for (int k = 0; k < MAX_PARTNERS; ++k)
-      partner = partner || partners[home * MAX_PARTNERS + k] == (int)i;
+    for (int k = 0; k < ISK_MAX_PARTNERS; ++k)
+      partner = partner || partners[home * ISK_MAX_PARTNERS + k] == (int)i;
     if (!partner) other = compose_union(other, s);
   }
   *home_out = h;
@@ -289,12 +279,91 @@ __kernel void track_begin(const uint vertex_count,
   const float3 x = vload3(source[v], skinned);
   vstore3(x, v, positions);
   vstore3(x, v, positions_other);
-  reach[v] = REACH_NONE;
+  reach[v] = ISK_REACH_NONE;
   states[v] = iso_values[v] > 0.0f && representative[v] == (int)v
-                  ? TRACK_MARCHING
-                  : TRACK_UNTRACKED;
+                  ? ISK_TRACK_MARCHING
+                  : ISK_TRACK_UNTRACKED;
   prev_gradients[v] = (float4)(0.0f);
   relax_frames[v] = (float4)(0.0f);
+}
+
+// The paper's steps, named as in the CPU reference (surface_tracking.cpp):
+// newton_step, contact_stop, march_to_contact, tangential_relaxation,
+// smoothing_step.
+
+// Eq. 4: one step of x towards the surface where the field's value gap
+// (iso - f) closes, along the unit gradient, of sigma * gap / |gradient|
+// clamped to +-max_step.
+ISK_INLINE float3 newton_step(const float3 x, const float3 unit,
+                              const float value_gap,
+                              const float gradient_length, const float sigma,
+                              const float max_step) {
+  const float length =
+      clamp(sigma * value_gap / gradient_length, -max_step, max_step);
+  return x + length * unit;
+}
+
+// Section 5, the contact stop: the gradient turned by more than the
+// contact angle (cos_contact) since the vertex's last plain step.
+ISK_INLINE bool contact_stop(const float3 unit, const float4 prev,
+                             const float cos_contact) {
+  return prev.w == ISK_GRADIENT_STEP &&
+         unit.x * prev.x + unit.y * prev.y + unit.z * prev.z < cos_contact;
+}
+
+// The contact by home field: a vertex that another part's field has
+// entered (by `entered` over its rest margin) marches to the contact
+// surface c = entered + contact_gap = 0 instead of its iso value, and stops
+// there. ISK_CONTACT_MARCH_NONE: not held, the paper's march goes on;
+// ISK_CONTACT_MARCH_STEPPED: x stepped towards the contact surface;
+// otherwise the state the vertex stops in.
+#define ISK_CONTACT_MARCH_NONE (-1)
+#define ISK_CONTACT_MARCH_STEPPED (-2)
+ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
+                                const float f, const float iso, const float4 h,
+                                const float4 other, const float entered,
+                                const float contact_gap, const float tolerance,
+                                const float sigma, const float max_step,
+                                const float min_gradient) {
+  bool to_contact = prev->w == ISK_GRADIENT_TO_CONTACT;
+  if (to_contact && f < iso - tolerance) {
+    to_contact = false;  // left through the surface: the paper's march
+    prev->w = ISK_GRADIENT_UNSET;
+  }
+  if (!(h.x > 0.0f &&
+        (to_contact || (f > iso + tolerance && entered > tolerance))))
+    return ISK_CONTACT_MARCH_NONE;
+  const float c = entered + contact_gap;
+  if (to_contact && c <= tolerance) return ISK_TRACK_CONTACT;
+  const float3 gc = other.yzw - h.yzw;
+  const float gc_len = sqrt(gc.x * gc.x + gc.y * gc.y + gc.z * gc.z);
+  if (!(gc_len > min_gradient)) return ISK_TRACK_LOST;
+  prev->w = ISK_GRADIENT_TO_CONTACT;
+  *frame = (float4)(c, gc / gc_len);  // the contact surface c = 0
+  *x = newton_step(*x, gc / gc_len, -c, gc_len, sigma, max_step);
+  return ISK_CONTACT_MARCH_STEPPED;
+}
+
+// Eq. 5, 6: x moved by mu times its ring's weighted centroid offset, within
+// the tangent plane of the surface it marches to (frame: signed distance,
+// unit normal); mu fades the move out one unit of distance away.
+ISK_INLINE float3 tangential_relaxation(const float3 x, const float3 centroid,
+                                        const float4 frame) {
+  const float3 unit = frame.yzw;
+  const float t = fabs(frame.x) - 1.0f;
+  const float mu = max(0.0f, 1.0f - t * t * t * t);
+  float3 d = centroid - x;
+  d -= (d.x * unit.x + d.y * unit.y + d.z * unit.z) * unit;
+  return x + mu * d;
+}
+
+// Eq. 7: one localized Laplacian step, the offset d to the near centroid
+// weighted by beta (b, contacts) and the tangential part of it by gamma
+// (c, creases).
+ISK_INLINE float3 smoothing_step(const float3 x, const float3 d,
+                                 const float3 tangential, const float b,
+                                 const float c) {
+  return x + b * d + (1.0f - b) * c * tangential;
 }
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
@@ -317,13 +386,13 @@ __kernel void track_project(const uint march_count, __global float* positions,
   const uint v = get_global_id(0);
   if (v >= march_count) return;
   uchar state = states[v];
-  if (state != TRACK_MARCHING) return;  // stopped: no more work this frame
+  if (state != ISK_TRACK_MARCHING) return;  // stopped: no more work this frame
   float3 x = vload3(v, positions);
   float4 prev = prev_gradients[v];
   float4 frame = relax_frames[v];
   const float iso = iso_values[v];
   const int home_field = home_fields[v];
-  const int home = contact_params.x > 0.0f ? home_field : -1;
+  const int home = (contact_flags & ISK_CONTACT_HOME_FIELD) ? home_field : -1;
   const float margin = home >= 0 ? home_margins[v] : 0.0f;
   // Without the contact by home field the other parts' value is not used.
   const float other_slack = home >= 0 ? margin + step_params.z : INFINITY;
@@ -335,64 +404,43 @@ __kernel void track_project(const uint march_count, __global float* positions,
     // Marching to a contact needs the other parts' exact value.
     const float4 sample = sample_tracking(
         ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, ISK_TRACKING_ARGS, x, home_field,
-        contact_params.w > 0.0f && prev.w != 2.0f, other_slack, &h, &other);
+        (contact_flags & ISK_CONTACT_VALUE_BOUNDS) && prev.w != ISK_GRADIENT_TO_CONTACT, other_slack, &h, &other);
     const float3 g = sample.yzw;
     const float g_len = sqrt(g.x * g.x + g.y * g.y + g.z * g.z);
     if (!(sample.x > 0.0f) || !(g_len > min_gradient)) {
-      state = TRACK_LOST;
+      state = ISK_TRACK_LOST;
       break;
     }
     float entered = 0.0f;  // how far another part's field exceeds home
     if (home >= 0) {
       entered = other.x - h.x - margin;
-      bool to_contact = prev.w == 2.0f;
-      if (to_contact && sample.x < iso - step_params.z) {
-        to_contact = false;  // left through the surface: the paper's march
-        prev.w = 0.0f;
-      }
-      if (h.x > 0.0f &&
-          (to_contact ||
-           (sample.x > iso + step_params.z && entered > step_params.z))) {
-        const float c = entered + contact_params.y;
-        if (to_contact && c <= step_params.z) {
-          state = TRACK_CONTACT;
-          break;
-        }
-        const float3 gc = other.yzw - h.yzw;
-        const float gc_len = sqrt(gc.x * gc.x + gc.y * gc.y + gc.z * gc.z);
-        if (!(gc_len > min_gradient)) {
-          state = TRACK_LOST;
-          break;
-        }
-        prev.w = 2.0f;
-        frame = (float4)(c, gc / gc_len);  // the contact surface c = 0
-        const float length = clamp(-step_params.x * c / gc_len,
-                                   -max_step, max_step);
-        x += length * (gc / gc_len);
-        continue;
+      const int march = march_to_contact(
+          &x, &prev, &frame, sample.x, iso, h, other, entered, contact_gap,
+          step_params.z, step_params.x, max_step, min_gradient);
+      if (march == ISK_CONTACT_MARCH_STEPPED) continue;
+      if (march != ISK_CONTACT_MARCH_NONE) {
+        state = (uchar)march;
+        break;
       }
     }
     const float3 unit = g / g_len;
-    if (prev.w == 1.0f &&
-        unit.x * prev.x + unit.y * prev.y + unit.z * prev.z < step_params.y) {
-      state = TRACK_CONTACT;
+    if (contact_stop(unit, prev, step_params.y)) {
+      state = ISK_TRACK_CONTACT;
       break;
     }
-    prev = (float4)(unit, 1.0f);
+    prev = (float4)(unit, ISK_GRADIENT_STEP);
     const float d = iso - sample.x;
     if (fabs(d) < step_params.z) {
       // On another part's surface: a crease, smoothed like a contact.
-      state = entered > step_params.z ? TRACK_CREASE : TRACK_CONVERGED;
+      state = entered > step_params.z ? ISK_TRACK_CREASE : ISK_TRACK_CONVERGED;
       break;
     }
     frame = (float4)(sample.x - iso, unit);
-    const float length =
-        clamp(step_params.x * d / g_len, -max_step, max_step);
-    x += length * unit;
+    x = newton_step(x, unit, d, g_len, step_params.x, max_step);
   }
   vstore3(x, v, positions);
   // Stopped: its last move, in the other buffer too (track_relax skips it).
-  if (state != TRACK_MARCHING) vstore3(x, v, positions_other);
+  if (state != ISK_TRACK_MARCHING) vstore3(x, v, positions_other);
   states[v] = state;
   prev_gradients[v] = prev;
   relax_frames[v] = frame;
@@ -418,23 +466,19 @@ __kernel void track_relax(const uint vertex_count,
                           const uint skip_stopped) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const bool marching = states[v] == TRACK_MARCHING;
+  const bool marching = states[v] == ISK_TRACK_MARCHING;
   if (!marching && skip_stopped) return;
   const float3 x = vload3(v, positions_in);
   float3 out = x;
   const float4 frame = relax_frames[v];
   const float3 unit = frame.yzw;
-  if (marching && rules[v] != RULE_FIXED &&
+  if (marching && rules[v] != ISK_RULE_FIXED &&
       unit.x * unit.x + unit.y * unit.y + unit.z * unit.z > 0.0f) {
-    const float t = fabs(frame.x) - 1.0f;
-    const float mu = max(0.0f, 1.0f - t * t * t * t);
     float3 centroid = (float3)(0.0f);
     const uint end = ring_offsets[v + 1];
     for (uint i = ring_offsets[v]; i < end; ++i)
       centroid += ring_weights[i] * vload3(ring_neighbours[i], positions_in);
-    float3 d = centroid - x;
-    d -= (d.x * unit.x + d.y * unit.y + d.z * unit.z) * unit;
-    out = x + mu * d;
+    out = tangential_relaxation(x, centroid, frame);
   }
   vstore3(out, v, positions_out);
 }
@@ -446,7 +490,7 @@ ISK_INLINE void push_reach(const uint v, const uint step,
                        __global const uint* reverse_offsets,
                        __global const int* reverse_neighbours,
                        __global uchar* reach) {
-  const uchar r = (uchar)min(step, (uint)REACH_MAX);
+  const uchar r = (uchar)min(step, (uint)ISK_REACH_MAX);
   const uint end = reverse_offsets[v + 1];
   for (uint i = reverse_offsets[v]; i < end; ++i) {
     const int w = reverse_neighbours[i];
@@ -469,8 +513,8 @@ __kernel void track_beta_init(const uint vertex_count,
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   const uchar state = states[v];
-  const float2 b = (float2)(state == TRACK_CONTACT ? 1.0f : 0.0f,
-                            state == TRACK_CREASE ? 1.0f : 0.0f);
+  const float2 b = (float2)(state == ISK_TRACK_CONTACT ? 1.0f : 0.0f,
+                            state == ISK_TRACK_CREASE ? 1.0f : 0.0f);
   beta[v] = b;
   beta_other[v] = b;
   if (b.x > 0.0f || b.y > 0.0f) {
@@ -515,8 +559,8 @@ __kernel void track_beta_diffuse(const uint vertex_count,
   float2 out = sum / count;
   if (channels.x == 0.0f) out.x = b.x;
   if (channels.y == 0.0f) out.y = b.y;
-  if (states[v] == TRACK_CONTACT) out.x = 1.0f;
-  if (states[v] == TRACK_CREASE) out.y = 1.0f;
+  if (states[v] == ISK_TRACK_CONTACT) out.x = 1.0f;
+  if (states[v] == ISK_TRACK_CREASE) out.y = 1.0f;
   beta_out[v] = out;
   if (active && ((out.x != 0.0f && next_channels.x != 0.0f) ||
                  (out.y != 0.0f && next_channels.y != 0.0f)))
@@ -549,12 +593,12 @@ __kernel void track_smooth(const uint vertex_count,
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   if (active_reach > 0 && reach[v] > active_reach &&
-      !(copy_marching && states[v] == TRACK_MARCHING))
+      !(copy_marching && states[v] == ISK_TRACK_MARCHING))
     return;
   const float3 x = vload3(v, positions_in);
   float3 out = x;
   const float2 bc = beta[v] * weights;
-  if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != RULE_FIXED) {
+  if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != ISK_RULE_FIXED) {
     float3 centroid = (float3)(0.0f);
     const uint near_begin = near_offsets[v];
     const int near = (int)(near_offsets[v + 1] - near_begin);
@@ -563,7 +607,7 @@ __kernel void track_smooth(const uint vertex_count,
     centroid /= (float)max(near, 1);
     const float3 d = near > 0 ? centroid - x : (float3)(0.0f);
     float3 tangential = (float3)(0.0f);
-    if (bc.y > 0.0f && near > 0 && kinds[v] == RING_CLOSED) {
+    if (bc.y > 0.0f && near > 0 && kinds[v] == ISK_RING_CLOSED) {
       const uint begin = ring_offsets[v];
       const uint end = ring_offsets[v + 1];
       float3 normal = (float3)(0.0f);
@@ -585,7 +629,7 @@ __kernel void track_smooth(const uint vertex_count,
             d - (d.x * normal.x + d.y * normal.y + d.z * normal.z) * normal;
       }
     }
-    out = x + bc.x * d + (1.0f - bc.x) * bc.y * tangential;
+    out = smoothing_step(x, d, tangential, bc.x, bc.y);
   }
   vstore3(out, v, positions_out);
 }

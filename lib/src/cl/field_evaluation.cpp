@@ -9,8 +9,9 @@
 #include <limits>
 #include <string>
 
-#include "isk/core/error.hpp"
+#include "cl/abi_checks.hpp"
 #include "core/stopwatch.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 namespace {
@@ -730,11 +731,13 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
     ensureOutputs(point_count, per_field);
     kernel_.setArg(0, points);
     kernel_.setArg(1, static_cast<cl_uint>(point_count));
-    setFieldArgs(kernel_, 2);
-    setCompositionArgs(kernel_, 7);
-    kernel_.setArg(13, composed_);
-    kernel_.setArg(14, per_field && field_count_ > 0 ? per_field_ : dummy_);
-    kernel_.setArg(15, static_cast<cl_uint>(per_field ? 1 : 0));
+    setFieldArgs(kernel_, ISK_EVALUATE_ARG_FIELDS);
+    setCompositionArgs(kernel_, ISK_EVALUATE_ARG_COMPOSITION);
+    kernel_.setArg(ISK_EVALUATE_ARG_OUTPUTS, composed_);
+    kernel_.setArg(ISK_EVALUATE_ARG_OUTPUTS + 1,
+                   per_field && field_count_ > 0 ? per_field_ : dummy_);
+    kernel_.setArg(ISK_EVALUATE_ARG_OUTPUTS + 2,
+                   static_cast<cl_uint>(per_field ? 1 : 0));
     cl::Event run;
     const auto start = std::chrono::steady_clock::now();
     context_->queue().enqueueNDRangeKernel(

@@ -1,4 +1,5 @@
-// The kernels/*.cl files embedded at build time (cmake/EmbedKernels.cmake).
+// The kernels/*.cl files and the headers they include (kernels/*.h)
+// embedded at build time (cmake/EmbedKernels.cmake).
 #pragma once
 
 #include <string_view>
@@ -7,7 +8,8 @@
 namespace isk::detail {
 
 struct KernelSource {
-  std::string_view name;  // file name without .cl
+  std::string_view name;  // a .cl file's name without .cl; a header's whole
+                          // name ("abi.h")
   std::string_view text;
 };
 

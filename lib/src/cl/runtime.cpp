@@ -235,9 +235,10 @@ int ClContext::cachedProgramCount() const {
 
 namespace {
 
-// A kernel file's source with its `#include "NAME.cl"` lines replaced by the
-// embedded NAME.cl (each file once): kernels share code that way and still
-// compile on their own with -I kernels.
+// A kernel file's source with its `#include "NAME.cl"` and `#include
+// "NAME.h"` lines replaced by the embedded file (each file once): kernels
+// share code and kernels/abi.h that way and still compile on their own with
+// -I kernels.
 void appendWithIncludes(const std::string& kernel_file,
                         std::vector<std::string>& seen, std::string& out) {
   if (std::find(seen.begin(), seen.end(), kernel_file) != seen.end()) return;
@@ -253,6 +254,12 @@ void appendWithIncludes(const std::string& kernel_file,
         line.compare(line.size() - 4, 4, ".cl\"") == 0) {
       appendWithIncludes(
           line.substr(prefix.size(), line.size() - prefix.size() - 4), seen,
+          out);
+      out += "\n";
+    } else if (line.rfind(prefix, 0) == 0 && line.size() > prefix.size() + 3 &&
+               line.compare(line.size() - 3, 3, ".h\"") == 0) {
+      appendWithIncludes(
+          line.substr(prefix.size(), line.size() - prefix.size() - 1), seen,
           out);
       out += "\n";
     } else {

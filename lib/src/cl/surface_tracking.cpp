@@ -7,16 +7,19 @@
 #include <string>
 #include <type_traits>
 
-#include "isk/core/error.hpp"
+#include "cl/abi_checks.hpp"
 #include "core/stopwatch.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 namespace {
 
-// The lane tests' chunks (tracking.cl, ISK_LANE_TESTS): 8 lanes (one mask
-// byte per chunk and cell), ISK_LANE_ROWS rows of 8 floats.
-constexpr int kLaneWidth = 8;
-constexpr size_t kLaneFloats = 24 * kLaneWidth;
+// The lane tests' chunks (tracking.cl, ISK_LANE_TESTS): ISK_LANE_WIDTH
+// lanes (one mask byte per chunk and cell), ISK_LANE_ROWS rows of as many
+// floats.
+constexpr int kLaneWidth = ISK_LANE_WIDTH;
+constexpr size_t kLaneFloats = ISK_LANE_ROWS * kLaneWidth;
+static_assert(kLaneWidth == 8, "a lane mask is one byte");
 
 size_t roundUp(size_t n, size_t multiple) {
   return (n + multiple - 1) / multiple * multiple;
@@ -59,10 +62,9 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
   const size_t n = static_cast<size_t>(std::max(vertex_count_, 1));
   // The neighbourhoods split into cells (splitNeighbourhoodsIntoCells) on a
   // CPU device, for a character with 100 tracked vertices per field or
-  // more: 8-10% off the projection on PoCL, 4-6% off the frame (README,
-  // Benchmarks). The split's host time and upload grow with the fields,
-  // its gain with the vertices: below that (RobotExpressive, 50 per field)
-  // the frame took 1-6% longer. Elsewhere one cell per box, the whole
+  // more (docs/performance.md): the split's host time and upload grow with
+  // the fields, its gain with the vertices, so below that it costs more
+  // than it saves. Elsewhere one cell per box, the whole
   // neighbourhood: a GPU's frame is bound by launches, and the split's
   // host time and upload are unmeasured there.
   const bool many_vertices =
@@ -301,14 +303,17 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
   kernel.setArg(first_index + 4, neighbour_entries_);
   kernel.setArg(first_index + 5, neighbour_pair_offsets_);
   kernel.setArg(first_index + 6, neighbour_pairs_);
-  kernel.setArg(
-      first_index + 7,
-      cl_float4{{options_.home_contact ? 1.f : 0.f, options_.contact_gap,
-                 options_.field_neighbourhoods ? 1.f : 0.f,
-                 options_.value_bounds ? 1.f : 0.f}});
-  kernel.setArg(first_index + 8, lane_offsets_);
-  kernel.setArg(first_index + 9, lane_params_);
-  kernel.setArg(first_index + 10, lane_masks_);
+  kernel.setArg(first_index + 7, options_.contact_gap);
+  const cl_int flags =
+      (options_.home_contact ? ISK_CONTACT_HOME_FIELD : 0) |
+      (options_.field_neighbourhoods ? ISK_CONTACT_NEIGHBOURHOODS : 0) |
+      (options_.value_bounds ? ISK_CONTACT_VALUE_BOUNDS : 0);
+  kernel.setArg(first_index + 8, flags);
+  kernel.setArg(first_index + 9, lane_offsets_);
+  kernel.setArg(first_index + 10, lane_params_);
+  kernel.setArg(first_index + 11, lane_masks_);
+  static_assert(ISK_CONTACT_ARG_COUNT == 12,
+                "setContactArgs binds every ISK_TRACKING_PARAMS argument");
 }
 
 void ClSurfaceTracking::buildLanes() {
@@ -490,12 +495,14 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(
         6, cl_float4{{options_.sigma, cos_contact, options_.tolerance, 0.f}});
     project_.setArg(7, step_limits_);
-    setContactArgs(project_, 8);
-    fields_->setFieldArgs(project_, 19);
-    if (!options_.occupied_cells) project_.setArg(23, every_cell_);
-    fields_->setCompositionArgs(project_, 24);
-    project_.setArg(30, relax_frames_);
-    project_.setArg(31, positions_[1 - current_]);
+    setContactArgs(project_, ISK_PROJECT_ARG_CONTACT);
+    fields_->setFieldArgs(project_, ISK_PROJECT_ARG_FIELDS);
+    if (!options_.occupied_cells)
+      project_.setArg(ISK_PROJECT_ARG_FIELDS + ISK_FIELD_ARG_CELLS,
+                      every_cell_);
+    fields_->setCompositionArgs(project_, ISK_PROJECT_ARG_COMPOSITION);
+    project_.setArg(ISK_PROJECT_ARG_RELAX_FRAMES, relax_frames_);
+    project_.setArg(ISK_PROJECT_ARG_OTHER_POSITIONS, positions_[1 - current_]);
     launch(project_, kProjection, march_count_);
   } catch (const cl::Error& e) {
     throwClError(

@@ -8,6 +8,8 @@
 #include <memory>
 #include <string>
 
+#include "abi.h"
+#include "core/stopwatch.hpp"
 #include "isk/core/error.hpp"
 #include "isk/tools/mesh_metrics.hpp"
 
@@ -15,14 +17,95 @@ namespace isk {
 
 namespace {
 
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
-}
+using detail::millisecondsSince;
 
 // Rest normals closer than this share a smoothed normal across a seam.
 constexpr float kSameNormalCos = 0.99f;
+
+// The paper's steps, named as in the kernels (kernels/tracking.cl):
+// newtonStep, contactStop, marchToContact, tangentialRelaxation,
+// smoothingStep. prev_gradients' w (ISK_GRADIENT_* of kernels/abi.h) says
+// what the vertex's last projection step was.
+
+// Eq. 4: one step of x towards the surface where the field's value gap
+// (iso - f) closes, along the unit gradient, of sigma * gap / |gradient|
+// clamped to +-max_step.
+Eigen::Vector3f newtonStep(const Eigen::Vector3f& x,
+                           const Eigen::Vector3f& unit, float value_gap,
+                           float gradient_length, float sigma,
+                           float max_step) {
+  const float length =
+      std::clamp(sigma * value_gap / gradient_length, -max_step, max_step);
+  return x + length * unit;
+}
+
+// Section 5, the contact stop: the gradient turned by more than the
+// contact angle (cos_contact) since the vertex's last plain step.
+bool contactStop(const Eigen::Vector3f& unit, const Eigen::Vector4f& prev,
+                 float cos_contact) {
+  return prev[3] == ISK_GRADIENT_STEP &&
+         unit.dot(prev.head<3>()) < cos_contact;
+}
+
+// The contact by home field: a vertex that another part's field has
+// entered (by `entered` over its rest margin) marches to the contact
+// surface c = entered + contact_gap = 0 instead of its iso value, and stops
+// there. kContactMarchNone: not held, the paper's march goes on;
+// kContactMarchStepped: x stepped towards the contact surface; otherwise
+// the state the vertex stops in.
+constexpr int kContactMarchNone = -1;
+constexpr int kContactMarchStepped = -2;
+int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
+                   float f, float iso, const HomeSamples& home, float entered,
+                   const SurfaceTrackingOptions& options, float max_step,
+                   float min_gradient) {
+  bool marching_to_contact = *prev_kind == ISK_GRADIENT_TO_CONTACT;
+  // Out of the other part's grip (left through the surface): back to the
+  // paper's march.
+  if (marching_to_contact && f < iso - options.tolerance) {
+    marching_to_contact = false;
+    *prev_kind = ISK_GRADIENT_UNSET;
+  }
+  if (!(home.home[0] > 0.f &&
+        (marching_to_contact ||
+         (f > iso + options.tolerance && entered > options.tolerance))))
+    return kContactMarchNone;
+  const float c = entered + options.contact_gap;
+  if (marching_to_contact && c <= options.tolerance)
+    return static_cast<int>(TrackState::kContact);
+  const Eigen::Vector3f gc = (home.other - home.home).tail<3>();
+  const float gc_len = gc.norm();
+  if (!(gc_len > min_gradient)) return static_cast<int>(TrackState::kLost);
+  *prev_kind = ISK_GRADIENT_TO_CONTACT;
+  // The relaxation's surface: the contact surface c = 0.
+  *frame << c, gc.x() / gc_len, gc.y() / gc_len, gc.z() / gc_len;
+  *x = newtonStep(*x, gc / gc_len, -c, gc_len, options.sigma, max_step);
+  return kContactMarchStepped;
+}
+
+// Eq. 5, 6: x moved by mu times its ring's weighted centroid offset, within
+// the tangent plane of the surface it marches to (frame: signed distance,
+// unit normal); mu fades the move out one unit of distance away.
+Eigen::Vector3f tangentialRelaxation(const Eigen::Vector3f& x,
+                                     const Eigen::Vector3f& centroid,
+                                     const Eigen::Vector4f& frame) {
+  const Eigen::Vector3f unit = frame.tail<3>();
+  const float t = std::abs(frame[0]) - 1.f;
+  const float mu = std::max(0.f, 1.f - t * t * t * t);
+  Eigen::Vector3f d = centroid - x;
+  d -= d.dot(unit) * unit;
+  return x + mu * d;
+}
+
+// Eq. 7: one localized Laplacian step, the offset d to the near centroid
+// weighted by beta (b, contacts) and the tangential part of it by gamma
+// (c, creases).
+Eigen::Vector3f smoothingStep(const Eigen::Vector3f& x,
+                              const Eigen::Vector3f& d,
+                              const Eigen::Vector3f& tangential, float b,
+                              float c) {
+  return x + b * d + (1.f - b) * c * tangential;
+}
 
 }  // namespace
 
@@ -716,45 +799,26 @@ void CpuSurfaceTracking::project(int steps) {
       float entered = 0.f;  // how far another part's field exceeds home
       if (options_.home_contact && mesh_->home_field[v] >= 0) {
         entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
-        bool marching_to_contact = prev_(v, 3) == 2.f;
-        // Out of the other part's grip (left through the surface): back
-        // to the paper's march.
-        if (marching_to_contact && f < iso - options_.tolerance) {
-          marching_to_contact = false;
-          prev_(v, 3) = 0.f;
-        }
-        if (home.home[0] > 0.f &&
-            (marching_to_contact ||
-             (f > iso + options_.tolerance && entered > options_.tolerance))) {
-          const float c = entered + options_.contact_gap;
-          if (marching_to_contact && c <= options_.tolerance) {
-            states_[v] = TrackState::kContact;
-            break;
-          }
-          const Eigen::Vector3f gc = (home.other - home.home).tail<3>();
-          const float gc_len = gc.norm();
-          if (!(gc_len > min_gradient)) {
-            states_[v] = TrackState::kLost;
-            break;
-          }
-          prev_(v, 3) = 2.f;
-          // The relaxation's surface: the contact surface c = 0.
-          relax_frames_.row(v) << c, gc.x() / gc_len, gc.y() / gc_len,
-              gc.z() / gc_len;
-          const float length =
-              std::clamp(-options_.sigma * c / gc_len, -max_step, max_step);
-          x += length * (gc / gc_len);
+        Eigen::Vector4f frame = relax_frames_.row(v).transpose();
+        const int march =
+            marchToContact(&x, &prev_(v, 3), &frame, f, iso, home, entered,
+                           options_, max_step, min_gradient);
+        if (march == kContactMarchStepped) {
+          relax_frames_.row(v) = frame.transpose();
           positions_.row(v) = x.transpose();
           continue;
         }
+        if (march != kContactMarchNone) {
+          states_[v] = static_cast<TrackState>(march);
+          break;
+        }
       }
       const Eigen::Vector3f unit = g / g_len;
-      if (prev_(v, 3) == 1.f &&
-          unit.dot(prev_.row(v).head<3>().transpose()) < cos_contact) {
+      if (contactStop(unit, prev_.row(v).transpose(), cos_contact)) {
         states_[v] = TrackState::kContact;
         break;
       }
-      prev_.row(v) << unit.x(), unit.y(), unit.z(), 1.f;
+      prev_.row(v) << unit.x(), unit.y(), unit.z(), ISK_GRADIENT_STEP;
       const float d = iso - f;
       if (std::abs(d) < options_.tolerance) {
         // On another part's surface: a crease between parts, smoothed
@@ -764,9 +828,7 @@ void CpuSurfaceTracking::project(int steps) {
         break;
       }
       relax_frames_.row(v) << f - iso, unit.x(), unit.y(), unit.z();
-      float length = options_.sigma * d / g_len;  // signed step along unit
-      length = std::clamp(length, -max_step, max_step);
-      x += length * unit;
+      x = newtonStep(x, unit, d, g_len, options_.sigma, max_step);
       positions_.row(v) = x.transpose();
     }
   }
@@ -791,15 +853,11 @@ void CpuSurfaceTracking::relax() {
     const Eigen::Vector3f unit = frame.tail<3>();
     if (!(unit.squaredNorm() > 0.f)) continue;  // no step this frame
     const Eigen::Vector3f x = positions_.row(v).transpose();
-    const float t = std::abs(frame[0]) - 1.f;
-    const float mu = std::max(0.f, 1.f - t * t * t * t);
     Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
     for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
       centroid += relaxation.weights[i] *
                   positions_.row(rings.neighbours[i]).transpose();
-    Eigen::Vector3f d = centroid - x;
-    d -= d.dot(unit) * unit;
-    scratch_.row(v) = (x + mu * d).transpose();
+    scratch_.row(v) = tangentialRelaxation(x, centroid, frame).transpose();
   }
   positions_.swap(scratch_);
   times_.relaxation_ms += millisecondsSince(start);
@@ -879,7 +937,7 @@ void CpuSurfaceTracking::smooth() {
           tangential = d - d.dot(normal) * normal;
         }
       }
-      scratch_.row(v) = (x + b * d + (1.f - b) * c * tangential).transpose();
+      scratch_.row(v) = smoothingStep(x, d, tangential, b, c).transpose();
     }
     positions_.swap(scratch_);
   }
