@@ -8,7 +8,7 @@
 // -> normals kernel -> read back positions and normals. Counters give the
 // per-stage device times (OpenCL profiling events) averaged over iterations.
 //
-//   isk_bench --benchmark_filter='^Frame/'    (README.md, Benchmarks)
+//   isk_bench --benchmark_filter='^Frame/'    (docs/performance.md)
 #include <benchmark/benchmark.h>
 
 #include <string>

@@ -7,8 +7,7 @@
 // and normalizes; a vanishing or overflowing sum takes the fallback normal
 // (the skinned normal). A vertex has about six triangles, so one cross
 // product per triangle instead of one per corner reads a third of the
-// positions and does a third of the products (the kernels 1.38-1.75x faster
-// on PoCL, README).
+// positions and does a third of the products (docs/performance.md).
 
 // Triangle t's (b - a) x (c - a), corners in the triangle's order
 // (triangles: #F by 3 vertex indices, row-major), unnormalized: its length

@@ -877,7 +877,7 @@ int main(int argc, char** argv) {
           ->capture_default_str(),
       app.add_option("--sigma", tracking.sigma,
                      "implicit: Newton step factor of eq. 4, (0, 1]; larger is "
-                     "faster and less accurate (README, Benchmarks)")
+                     "faster and less accurate (docs/performance.md)")
           ->check(CLI::Range(1e-6, 1.0))
           ->capture_default_str(),
       app.add_option("--contact-angle", tracking.contact_angle_degrees,
