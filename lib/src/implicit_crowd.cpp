@@ -8,7 +8,7 @@
 
 #include "isk/core/error.hpp"
 #include "skinner_fields.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 
 namespace isk {
 
@@ -391,14 +391,14 @@ void ImplicitCrowd::readPositions(Matrix3Xf& out) {
   State& s = state("readPositions", true);
   const auto start = std::chrono::steady_clock::now();
   s.tracking->readPositions(out);
-  s.times.readback_ms += detail::millisecondsSince(start);
+  s.times.readback_ms += millisecondsSince(start);
 }
 
 void ImplicitCrowd::readNormals(Matrix3Xf& out) {
   State& s = state("readNormals", true);
   const auto start = std::chrono::steady_clock::now();
   s.tracking->readNormals(out);
-  s.times.readback_ms += detail::millisecondsSince(start);
+  s.times.readback_ms += millisecondsSince(start);
 }
 
 const cl::Buffer& ImplicitCrowd::positionsBuffer() const {

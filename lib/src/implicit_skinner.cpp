@@ -5,7 +5,7 @@
 
 #include "isk/core/error.hpp"
 #include "skinner_fields.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 
 namespace isk {
 
@@ -87,14 +87,14 @@ void ImplicitSkinner::readPositions(Matrix3Xf& out) {
   checkUsable("readPositions", true);
   const auto start = std::chrono::steady_clock::now();
   tracking_->readPositions(out);
-  times_.readback_ms += detail::millisecondsSince(start);
+  times_.readback_ms += millisecondsSince(start);
 }
 
 void ImplicitSkinner::readNormals(Matrix3Xf& out) {
   checkUsable("readNormals", true);
   const auto start = std::chrono::steady_clock::now();
   tracking_->readNormals(out);
-  times_.readback_ms += detail::millisecondsSince(start);
+  times_.readback_ms += millisecondsSince(start);
 }
 
 const cl::Buffer& ImplicitSkinner::positionsBuffer() const {

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "cl/abi_checks.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/core/error.hpp"
 
 namespace isk {
@@ -685,7 +685,7 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
                                            pair_angles_staging_.data());
     upload_ms_ = context_->profilingEnabled()
                      ? eventMilliseconds(write)
-                     : detail::millisecondsSince(start);
+                     : millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, "ClFieldEvaluation::setPose");
   }
@@ -747,7 +747,7 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
     run.wait();
     kernel_ms_ = context_->profilingEnabled()
                      ? eventMilliseconds(run)
-                     : detail::millisecondsSince(start);
+                     : millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClFieldEvaluation::evaluate (") +
                         fieldStorageName(storage_) + ", " +

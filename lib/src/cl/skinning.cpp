@@ -5,7 +5,7 @@
 
 #include "isk/core/error.hpp"
 #include "isk/core/vertex_normals.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 
 namespace isk {
 namespace {
@@ -156,7 +156,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
     queue.enqueueWriteBuffer(joint_transforms_, profiling ? CL_FALSE : CL_TRUE,
                              0, staging_.size() * sizeof(float),
                              staging_.data(), nullptr, &upload);
-    if (!profiling) times_.upload_ms = detail::millisecondsSince(start);
+    if (!profiling) times_.upload_ms = millisecondsSince(start);
 
     cl::Kernel& kernel =
         method == SkinningMethod::kLinearBlend ? lbs_kernel_ : dqs_kernel_;
@@ -176,7 +176,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
                                nullptr, &skin);
     if (!profiling) {
       skin.wait();
-      times_.skinning_ms = detail::millisecondsSince(start);
+      times_.skinning_ms = millisecondsSince(start);
     }
     if (recompute_normals) {
       triangle_normals_kernel_.setArg(0, static_cast<cl_uint>(triangle_count_));
@@ -198,7 +198,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
                                  cl::NullRange, nullptr, &normals);
       if (!profiling) {
         normals.wait();
-        times_.normals_ms = detail::millisecondsSince(start);
+        times_.normals_ms = millisecondsSince(start);
       }
     }
     if (profiling) {
@@ -236,7 +236,7 @@ double ClSkinning::readBuffer(const cl::Buffer& buffer, Matrix3Xf& out,
                                         out.size() * sizeof(float), out.data(),
                                         nullptr, &read);
     return context_->profilingEnabled() ? eventMilliseconds(read)
-                                        : detail::millisecondsSince(start);
+                                        : millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClSkinning::") + what);
   }

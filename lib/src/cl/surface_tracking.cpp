@@ -8,7 +8,7 @@
 #include <type_traits>
 
 #include "cl/abi_checks.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/core/error.hpp"
 
 namespace isk {
@@ -286,7 +286,7 @@ void ClSurfaceTracking::launch(cl::Kernel& kernel, Stage stage, int items) {
   context_->queue().enqueueNDRangeKernel(kernel, cl::NullRange, global,
                                          cl::NullRange, nullptr, &event);
   event.wait();
-  addTime(stage, detail::millisecondsSince(start));
+  addTime(stage, millisecondsSince(start));
 }
 
 void ClSurfaceTracking::collectTimes() {

@@ -9,7 +9,7 @@
 #include "isk/core/error.hpp"
 #include "isk/fields/field_cache.hpp"
 #include "core/parallel_for.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 
 namespace isk {
 namespace {
@@ -115,7 +115,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   out.partition = partitionMesh(rig);
   out.warnings = out.partition.warnings;
   report("partition", 1);
-  out.times.partition_ms = detail::millisecondsSince(start);
+  out.times.partition_ms = millisecondsSince(start);
   const Skeleton& skeleton = rig.skeleton;
 
   // The cache: samples, fits and grids of this rig and these parameters.
@@ -142,7 +142,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
       if (loadFieldCache(cache_path, rig, options, &out, &why)) {
         loaded = true;
         out.cache_origin = FieldCacheOrigin::kLoaded;
-        out.times.sampling_ms = detail::millisecondsSince(start);
+        out.times.sampling_ms = millisecondsSince(start);
         report("loading", 1);
       } else {
         out.cache_origin = FieldCacheOrigin::kRebuilt;
@@ -185,7 +185,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
       report("sampling", static_cast<float>(i + 1) / joints.size());
     }
     if (options.edit_samples) options.edit_samples(samples);
-    out.times.sampling_ms = detail::millisecondsSince(start);
+    out.times.sampling_ms = millisecondsSince(start);
 
     start = std::chrono::steady_clock::now();
     std::vector<BoneField> fields(samples.size());
@@ -212,7 +212,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
       out.samples.push_back(std::move(samples[i]));
       out.fields.push_back(std::move(fields[i]));
     }
-    out.times.fitting_ms = detail::millisecondsSince(start);
+    out.times.fitting_ms = millisecondsSince(start);
 
     start = std::chrono::steady_clock::now();
     out.grids.resolution = options.grid_resolution;
@@ -227,7 +227,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
     out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
     for (int i = 0; i < out.grids.fieldCount(); ++i)
       out.grids.field_of_joint[out.grids.grids[i].joint] = i;
-    out.times.baking_ms = detail::millisecondsSince(start);
+    out.times.baking_ms = millisecondsSince(start);
     if (!cache_path.empty()) {
       std::string why;
       if (!saveFieldCache(out, rig, options, cache_path, &why))
@@ -244,7 +244,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
                                      [&](float f) { report("operators", f); });
   out.warnings.insert(out.warnings.end(), out.composition.warnings.begin(),
                       out.composition.warnings.end());
-  out.times.operators_ms = detail::millisecondsSince(start);
+  out.times.operators_ms = millisecondsSince(start);
 
   if (options.grid_precision == GridPrecision::kHalf)
     roundGridsToHalf(out.grids);
@@ -261,7 +261,7 @@ ImplicitFields buildImplicitFields(const Rig& rig,
         rig.mesh.describeVertex(out.outside_vertices.front()) +
         "); surface tracking leaves them where skinning puts them");
   report("iso values", 1);
-  out.times.iso_ms = detail::millisecondsSince(start);
+  out.times.iso_ms = millisecondsSince(start);
   return out;
 }
 

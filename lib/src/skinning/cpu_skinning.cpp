@@ -4,7 +4,7 @@
 #include <string>
 
 #include "isk/core/error.hpp"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 
 namespace isk {
 CpuSkinning::CpuSkinning(const Mesh& mesh, const SkinWeights& weights,
@@ -66,7 +66,7 @@ void CpuSkinning::run(SkinningMethod method, const TransformList& skinning,
   auto start = std::chrono::steady_clock::now();
   job.run();
   has_run_ = true;
-  times_.skinning_ms = detail::millisecondsSince(start);
+  times_.skinning_ms = millisecondsSince(start);
   if (!recompute_normals) return;
   VertexNormalsJob normals;
   normals.positions = &positions_;
@@ -76,7 +76,7 @@ void CpuSkinning::run(SkinningMethod method, const TransformList& skinning,
   normals.out_normals = &normals_;
   start = std::chrono::steady_clock::now();
   normals.run();
-  times_.normals_ms = detail::millisecondsSince(start);
+  times_.normals_ms = millisecondsSince(start);
 }
 
 }  // namespace isk

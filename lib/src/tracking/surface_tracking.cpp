@@ -9,7 +9,7 @@
 #include <string>
 
 #include "abi.h"
-#include "core/stopwatch.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/core/error.hpp"
 #include "isk/tools/mesh_metrics.hpp"
 
@@ -17,7 +17,6 @@ namespace isk {
 
 namespace {
 
-using detail::millisecondsSince;
 
 // Rest normals closer than this share a smoothed normal across a seam.
 constexpr float kSameNormalCos = 0.99f;
