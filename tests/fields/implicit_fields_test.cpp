@@ -657,6 +657,44 @@ TEST(ImplicitFields, ReportsProgressTimesAndIsDeterministic) {
     EXPECT_EQ(a.grids.grids[i].nodes, b.grids.grids[i].nodes) << "field " << i;
 }
 
+// The same stages from the field cache, loading replacing sampling, fitting
+// and baking; every stage timed; and the build prints nothing, whatever its
+// caches do (their trouble is in `warnings`, for the caller to show).
+TEST(ImplicitFields, StagesFromTheCacheAreTimedAndPrintNothing) {
+  test::ScopedTempDir dir;
+  std::vector<std::string> stages;
+  ImplicitFieldsOptions options;
+  options.cache = true;
+  options.cache_folder = dir.path().string();
+  options.composition.default_operator = CompositionOperator::kBlend;
+  options.progress = [&](const char* stage, float) {
+    if (stages.empty() || stages.back() != stage) stages.push_back(stage);
+  };
+  const Rig& rig = rigNamed("arm");
+  ::testing::internal::CaptureStderr();
+  const ImplicitFields built = buildImplicitFields(rig, options);
+  EXPECT_EQ(built.cache_origin, FieldCacheOrigin::kBuilt);
+  EXPECT_EQ(stages,
+            (std::vector<std::string>{"partition", "sampling", "fitting",
+                                      "baking", "operators", "iso values"}));
+  for (const double ms : {built.times.partition_ms, built.times.sampling_ms,
+                          built.times.fitting_ms, built.times.baking_ms,
+                          built.times.operators_ms, built.times.iso_ms})
+    EXPECT_GT(ms, 0);
+  stages.clear();
+  const ImplicitFields loaded = buildImplicitFields(rig, options);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(loaded.cache_origin, FieldCacheOrigin::kLoaded);
+  EXPECT_EQ(stages, (std::vector<std::string>{"partition", "loading",
+                                              "operators", "iso values"}));
+  EXPECT_GT(loaded.times.sampling_ms, 0);  // the load
+  EXPECT_EQ(loaded.times.fitting_ms, 0);
+  EXPECT_EQ(loaded.times.baking_ms, 0);
+  EXPECT_EQ(loaded.iso_values, built.iso_values);
+  EXPECT_EQ(loaded.warnings, built.warnings);
+  EXPECT_EQ(loaded.composition.tables.size(), 1u);
+}
+
 TEST(ImplicitFields, EditedSamplesAreWhatIsFitted) {
   // The shoulder fix of the paper: an application adds a sample to a bone.
   const Rig& rig = rigNamed("arm");

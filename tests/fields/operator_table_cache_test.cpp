@@ -1,17 +1,24 @@
 // The on-disk cache of operator tables (isk/fields/composition_operator.hpp): a
 // cached table equals the bake bit for bit, a bad file is re-baked and
-// rewritten, a disabled cache writes nothing, and nothing but the table's
-// own file is ever replaced. Every test works in its own temporary folder.
+// rewritten (with a warning, never a line on stderr), a disabled cache
+// writes nothing, nothing but the table's own file is ever replaced, and the
+// file's bytes are those earlier versions wrote. Every test works in its own
+// temporary folder.
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "isk/fields/composition_operator.hpp"
+#include "test_support.hpp"
 
 namespace isk {
 namespace {
@@ -96,14 +103,23 @@ TEST_F(OperatorTableCache, ACorruptOrTruncatedFileIsRebakedAndRewritten) {
   EXPECT_FALSE(
       loadOperatorTable(fileOf(op).string(), op, kResolution, &loaded, &why));
   EXPECT_NE(why.find("checksum"), std::string::npos) << why;
+  // Reported as a warning, not printed: the library never prints.
   OperatorTableOrigin origin;
+  std::vector<std::string> warnings;
+  ::testing::internal::CaptureStderr();
   OperatorTable table = loadOrBakeOperatorTable(
-      op, kResolution, folder_.string(), 1, nullptr, &origin);
+      op, kResolution, folder_.string(), 1, nullptr, &origin, &warnings);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
   EXPECT_EQ(origin, OperatorTableOrigin::kRebaked);
   EXPECT_TRUE(sameBits(table, baked));
+  EXPECT_EQ(warnings,
+            std::vector<std::string>{"operator table cache unusable (" + why +
+                                     "); baking the blend table again"});
+  warnings.clear();
   table = loadOrBakeOperatorTable(op, kResolution, folder_.string(), 1, nullptr,
-                                  &origin);
+                                  &origin, &warnings);
   EXPECT_EQ(origin, OperatorTableOrigin::kLoaded);  // rewritten valid
+  EXPECT_TRUE(warnings.empty());
 
   // Truncated, then garbage, then empty.
   for (const std::string& content :
@@ -154,14 +170,24 @@ TEST_F(OperatorTableCache, DisabledWritesNothing) {
 
 TEST_F(OperatorTableCache, NeverReplacesAnythingElse) {
   const CompositionOperator op = CompositionOperator::kBulge;
-  // A folder where the file would go: left alone, the table still comes.
+  // A folder where the file would go: left alone, the table still comes,
+  // and the two warnings say that it could neither be read nor written.
   fs::create_directories(fileOf(op) / "keep");
   OperatorTableOrigin origin;
+  std::vector<std::string> warnings;
   const OperatorTable table = loadOrBakeOperatorTable(
-      op, kResolution, folder_.string(), 1, nullptr, &origin);
+      op, kResolution, folder_.string(), 1, nullptr, &origin, &warnings);
   EXPECT_NE(origin, OperatorTableOrigin::kLoaded);
   EXPECT_TRUE(sameBits(table, bakeOperatorTable(op, kResolution, 1)));
   EXPECT_TRUE(fs::is_directory(fileOf(op) / "keep"));
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_EQ(warnings[0].rfind("operator table cache unusable (", 0), 0u)
+      << warnings[0];
+  EXPECT_EQ(warnings[1],
+            "could not write the operator table cache ('" +
+                fileOf(op).string() +
+                "' exists and is not a regular file); the table will be "
+                "baked again next time");
   // Another file in the folder is untouched.
   { std::ofstream(folder_ / "notes.txt") << "mine"; }
   loadOrBakeOperatorTable(CompositionOperator::kBlend, kResolution,
@@ -172,9 +198,85 @@ TEST_F(OperatorTableCache, NeverReplacesAnythingElse) {
   EXPECT_EQ(text, "mine");
   // The folder can be below a file: the cache reports it, the bake works.
   const fs::path blocked = folder_ / "notes.txt" / "sub";
+  warnings.clear();
   EXPECT_TRUE(
-      sameBits(loadOrBakeOperatorTable(op, kResolution, blocked.string(), 1),
+      sameBits(loadOrBakeOperatorTable(op, kResolution, blocked.string(), 1,
+                                       nullptr, nullptr, &warnings),
                bakeOperatorTable(op, kResolution, 1)));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("could not write the operator table cache"),
+            std::string::npos)
+      << warnings[0];
+}
+
+// A table shared by the process hands the cache's warnings to the call
+// that made it (later calls get the table made then, and no warning).
+TEST_F(OperatorTableCache, SharedTableWarnsTheCallThatMadeIt) {
+  fs::create_directories(folder_);
+  { std::ofstream(folder_ / "file") << "mine"; }
+  const test::ScopedEnv cache_dir("ISK_CACHE_DIR",
+                                  (folder_ / "file" / "sub").c_str());
+  const int resolution = 19;  // no other test of this process makes it
+  std::vector<std::string> warnings;
+  ::testing::internal::CaptureStderr();
+  const auto table = sharedOperatorTable(CompositionOperator::kBulge,
+                                         resolution, nullptr, &warnings);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0].rfind("could not write the operator table cache (", 0),
+            0u)
+      << warnings[0];
+  warnings.clear();
+  EXPECT_EQ(sharedOperatorTable(CompositionOperator::kBulge, resolution,
+                                nullptr, &warnings),
+            table);
+  EXPECT_TRUE(warnings.empty());
+}
+
+// The file's bytes, as every earlier version wrote them: existing caches
+// keep loading. A 48-byte header (magic "ISKOPTBL", format version 1, the
+// byte order mark 0x01020304, operator, resolution, the parameter hash of
+// the file name, the float count, FNV-1a of the nodes' 32-bit words), then
+// the nodes.
+TEST_F(OperatorTableCache, TheFileLayoutIsUnchanged) {
+  const CompositionOperator op = CompositionOperator::kBulge;
+  const OperatorTable table = bakeOperatorTable(op, kResolution, 1);
+  ASSERT_TRUE(saveOperatorTable(table, fileOf(op).string()));
+  std::ifstream in(fileOf(op), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)),
+                          std::istreambuf_iterator<char>());
+  ASSERT_EQ(bytes.size(), 48 + table.bytes());
+  auto u32 = [&](size_t at) {
+    uint32_t v;
+    std::memcpy(&v, bytes.data() + at, 4);
+    return v;
+  };
+  auto u64 = [&](size_t at) {
+    uint64_t v;
+    std::memcpy(&v, bytes.data() + at, 8);
+    return v;
+  };
+  EXPECT_EQ(bytes.substr(0, 8), "ISKOPTBL");
+  EXPECT_EQ(u32(8), 1u);
+  EXPECT_EQ(u32(12), 0x01020304u);
+  EXPECT_EQ(u32(16), static_cast<uint32_t>(op));
+  EXPECT_EQ(u32(20), static_cast<uint32_t>(kResolution));
+  // "operator-table-v1-bulge-17-<16 hex digits of the hash>.bin"
+  const std::string name = operatorTableCacheFileName(op, kResolution);
+  ASSERT_EQ(name.rfind("operator-table-v1-bulge-17-", 0), 0u) << name;
+  char hash[17];
+  std::snprintf(hash, sizeof(hash), "%016llx",
+                static_cast<unsigned long long>(u64(24)));
+  EXPECT_EQ(name, "operator-table-v1-bulge-17-" + std::string(hash) + ".bin");
+  EXPECT_EQ(u64(32), table.nodes.size());
+  uint64_t checksum = 1469598103934665603ull;
+  for (size_t i = 0; i < table.nodes.size(); ++i) {
+    checksum ^= u32(48 + 4 * i);
+    checksum *= 1099511628211ull;
+  }
+  EXPECT_EQ(u64(40), checksum);
+  EXPECT_EQ(std::memcmp(bytes.data() + 48, table.nodes.data(), table.bytes()),
+            0);
 }
 
 }  // namespace

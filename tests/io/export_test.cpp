@@ -237,9 +237,10 @@ TEST(ExportTest, MissingFolderThrowsIoNamingThePath) {
   EXPECT_TRUE(folderEntries(dir.path()).empty());
 }
 
-// The target is a folder: the temporary file is written, the rename fails,
-// and the temporary must be gone afterwards (permissions cannot make a path
-// unwritable when the tests run as root; this failure happens for everyone).
+// The target is a folder: the write is refused (only a regular file is ever
+// replaced) and no temporary file is left behind (permissions cannot make a
+// path unwritable when the tests run as root; this failure happens for
+// everyone).
 TEST(ExportTest, FailedRenameThrowsIoAndLeavesNoTemporaryFile) {
   ScopedTempDir dir;
   const FanMesh fan = makeFan();
@@ -258,6 +259,50 @@ TEST(ExportTest, FailedRenameThrowsIoAndLeavesNoTemporaryFile) {
     }
     EXPECT_EQ(folderEntries(dir.path()), std::vector<std::string>{"taken.ply"});
   }
+}
+
+// A link under the target's name is neither followed nor replaced.
+TEST(ExportTest, NeverReplacesALink) {
+  ScopedTempDir dir;
+  const FanMesh fan = makeFan();
+  { std::ofstream(dir.path() / "mine.obj") << "mine\n"; }
+  fs::create_symlink(dir.path() / "mine.obj", dir.path() / "fan.obj");
+  const std::string path = dir.file("fan.obj");
+  try {
+    writeMesh(path, MeshFormat::kObj, fan.positions, &fan.normals,
+              fan.triangles);
+    FAIL() << "expected isk::Error";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kIo);
+    EXPECT_NE(std::string(error.what()).find(path), std::string::npos)
+        << error.what();
+  }
+  EXPECT_THROW(writeTextFile(path, "x"), Error);
+  EXPECT_TRUE(fs::is_symlink(path));
+  std::ifstream in(dir.path() / "mine.obj");
+  std::string text;
+  std::getline(in, text);
+  EXPECT_EQ(text, "mine");
+  EXPECT_EQ(folderEntries(dir.path()),
+            (std::vector<std::string>{"fan.obj", "mine.obj"}));
+}
+
+// Larger than the writer's 1 MiB buffer: written in several chunks, whole.
+TEST(ExportTest, LargeMeshesAreWrittenWhole) {
+  ScopedTempDir dir;
+  const int vertices = 60000;  // about 2 MiB of OBJ text
+  Matrix3Xf positions(vertices, 3);
+  for (int v = 0; v < vertices; ++v)
+    positions.row(v) << 0.001f * v, -0.5f * v, 1.f / (v + 1);
+  TriangleMatrix triangles(vertices - 2, 3);
+  for (int f = 0; f < vertices - 2; ++f) triangles.row(f) << f, f + 1, f + 2;
+  const std::string path = dir.file("large.obj");
+  writeMesh(path, MeshFormat::kObj, positions, nullptr, triangles);
+  EXPECT_GT(fs::file_size(path), 2u << 20);
+  const ParsedMesh read = readObj(path);
+  EXPECT_EQ(read.positions, positions);
+  EXPECT_EQ(read.triangles, triangles);
+  EXPECT_EQ(folderEntries(dir.path()), std::vector<std::string>{"large.obj"});
 }
 
 TEST(ExportTest, TextFilesAreWrittenWholeOrNotAtAll) {

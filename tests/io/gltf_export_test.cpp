@@ -8,8 +8,10 @@
 #include <assimp/scene.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <assimp/Importer.hpp>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -253,6 +255,49 @@ TEST(GltfExportTest, WriterChecksItsInputs) {
   checkStructure(glb, 1, 1, 3);
   const Matrix3Xf back = frameOf(glb, 0, 0);
   EXPECT_EQ(back, p);
+}
+
+// Written like every file the library writes: an old file is replaced
+// whole; a folder in the way or a missing folder is kIo naming the path,
+// and no temporary file is left.
+TEST(GltfExportTest, ReplacesAFileWholeOrFailsNamingThePath) {
+  test::ScopedTempDir dir;
+  TriangleMatrix triangles(1, 3);
+  triangles << 0, 1, 2;
+  GltfTrack track;
+  track.name = "t";
+  Matrix3Xf p = Matrix3Xf::Zero(3, 3);
+  p(1, 0) = 1;
+  p(2, 1) = 1;
+  const Matrix3Xf doubled = 2 * p;
+  track.positions = {p, doubled};
+  Matrix3Xf n = Matrix3Xf::Zero(3, 3);
+  n.col(2).setOnes();
+  track.normals = {n, n};
+  const std::string path = dir / "a.glb";
+  { std::ofstream(path) << "an older, shorter file"; }
+  writeAnimatedGltf(path, triangles, {track}, {0.0, 1.0});
+  const Glb glb = parseGlb(path);
+  checkStructure(glb, 1, 2, 3);
+  EXPECT_EQ(frameOf(glb, 0, 1), doubled);
+
+  std::filesystem::create_directories(dir / "folder.glb");
+  for (const std::string& target :
+       {dir / "folder.glb", (dir.path() / "missing" / "b.glb").string()}) {
+    try {
+      writeAnimatedGltf(target, triangles, {track}, {0.0, 1.0});
+      ADD_FAILURE() << "no error for " << target;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kIo) << e.what();
+      EXPECT_NE(std::string(e.what()).find(target), std::string::npos)
+          << e.what();
+    }
+  }
+  std::vector<std::string> entries;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    entries.push_back(entry.path().filename().string());
+  std::sort(entries.begin(), entries.end());
+  EXPECT_EQ(entries, (std::vector<std::string>{"a.glb", "folder.glb"}));
 }
 
 }  // namespace

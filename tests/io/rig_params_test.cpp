@@ -6,6 +6,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include "data_folder.hpp"
 #include "isk/core/error.hpp"
@@ -63,6 +65,32 @@ TEST(RigParamsTest, RoundTripsThroughAFile) {
   EXPECT_EQ(formatRigParams(back), test::readFile(dir / "p.json"));
   // An empty object is every default.
   EXPECT_TRUE(parseRigParams("{}", "x.json") == RigParams());
+}
+
+// Saved like every file the library writes: whole or not at all, into a
+// folder that exists, over nothing but a regular file.
+TEST(RigParamsTest, SaveFailuresAreIoErrorsNamingThePath) {
+  test::ScopedTempDir dir;
+  const Rig& rig = test::rigNamed("arm");
+  const RigParams params = everyKey(rig.skeleton);
+  fs::create_directories(dir.path() / "folder.json");
+  for (const std::string& path :
+       {(dir.path() / "missing" / "p.json").string(), dir / "folder.json"}) {
+    try {
+      saveRigParams(path, params);
+      ADD_FAILURE() << "no isk::Error for " << path;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kIo) << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_FALSE(fs::exists(dir / "missing"));
+  EXPECT_TRUE(fs::is_directory(dir / "folder.json"));
+  std::vector<std::string> entries;
+  for (const auto& entry : fs::directory_iterator(dir.path()))
+    entries.push_back(entry.path().filename().string());
+  EXPECT_EQ(entries, std::vector<std::string>{"folder.json"});
 }
 
 TEST(RigParamsTest, ApplySetsOperatorsSamplesAndControllers) {

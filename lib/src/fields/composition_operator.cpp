@@ -1,12 +1,8 @@
 #include "isk/fields/composition_operator.hpp"
 
-#include <fcntl.h>
 #include <sys/mman.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -16,13 +12,12 @@
 #include <fstream>
 #include <map>
 #include <mutex>
-#include <random>
 #include <utility>
 
 #include "core/cache_file.hpp"
-#include "isk/core/error.hpp"
 #include "core/parallel_for.hpp"
 #include "fields/trilinear.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 namespace {
@@ -157,7 +152,7 @@ ThetaController sampledController(double (*theta)(double alpha,
 // `count` zeroed floats in `nodes`, on transparent huge pages where the
 // kernel offers them on request (THP "madvise"): a table is 32 MiB, and
 // faulting it in 4 KiB pages costs more than reading or baking it on some
-// virtual machines (about 90 ms against 9 ms measured on this one).
+// virtual machines.
 void allocateNodes(std::vector<float>& nodes, size_t count) {
   nodes.clear();
   nodes.shrink_to_fit();
@@ -342,15 +337,17 @@ OperatorTable bakeOperatorTable(CompositionOperator op, int resolution,
 
 std::shared_ptr<const OperatorTable> sharedOperatorTable(
     CompositionOperator op, int resolution,
-    const std::function<void(float)>& progress) {
+    const std::function<void(float)>& progress,
+    std::vector<std::string>* warnings) {
   static std::mutex mutex;
   static std::map<std::pair<int, int>, std::shared_ptr<const OperatorTable>>
       cache;
   std::lock_guard<std::mutex> lock(mutex);
   auto& slot = cache[{static_cast<int>(op), resolution}];
   if (!slot) {
-    slot = std::make_shared<const OperatorTable>(loadOrBakeOperatorTable(
-        op, resolution, operatorTableCacheFolder(), 0, progress));
+    slot = std::make_shared<const OperatorTable>(
+        loadOrBakeOperatorTable(op, resolution, operatorTableCacheFolder(), 0,
+                                progress, nullptr, warnings));
   } else if (progress) {
     progress(1.f);
   }
@@ -364,46 +361,26 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr uint32_t kCacheFormatVersion = 1;
 // Bump whenever the operator math or the table layout changes: the
 // parameter hash, hence the file name, changes with it.
 constexpr uint32_t kOperatorBakeVersion = 1;
-constexpr uint32_t kByteOrderMark = 0x01020304u;
-constexpr char kCacheMagic[8] = {'I', 'S', 'K', 'O', 'P', 'T', 'B', 'L'};
+constexpr detail::CacheFileKind kOperatorTableFile = {
+    {'I', 'S', 'K', 'O', 'P', 'T', 'B', 'L'},
+    1,  // format version: bumping it orphans every file written
+    "an isk operator table",
+    detail::ChecksumWords::k32Bit};
 
-struct CacheHeader {
-  char magic[8];
-  uint32_t format_version;
-  uint32_t byte_order;
+// The 48-byte header of a table file; the nodes follow.
+struct TableFileHeader {
+  detail::CacheFilePreamble preamble;
   uint32_t op;
   uint32_t resolution;
   uint64_t parameter_hash;
   uint64_t float_count;
-  uint64_t checksum;
+  uint64_t checksum;  // of the nodes
 };
-static_assert(sizeof(CacheHeader) == 48, "the header is 48 bytes, unpadded");
-
-uint64_t fnv1a(const void* data, size_t bytes,
-               uint64_t hash = 1469598103934665603ull) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < bytes; ++i) {
-    hash ^= p[i];
-    hash *= 1099511628211ull;
-  }
-  return hash;
-}
-
-// Checksum of the nodes: FNV-1a over 32-bit words (fast enough for 32 MiB).
-uint64_t nodesChecksum(const std::vector<float>& nodes) {
-  uint64_t hash = 1469598103934665603ull;
-  for (const float f : nodes) {
-    uint32_t word;
-    std::memcpy(&word, &f, sizeof(word));
-    hash ^= word;
-    hash *= 1099511628211ull;
-  }
-  return hash;
-}
+static_assert(sizeof(TableFileHeader) == 48,
+              "the header is 48 bytes, unpadded");
 
 // Everything a bake depends on besides (op, resolution).
 uint64_t bakeParameterHash(CompositionOperator op, int resolution) {
@@ -413,7 +390,7 @@ uint64_t bakeParameterHash(CompositionOperator op, int resolution) {
                 "layout=float4(g,dg/dx,dg/dy,0) x>=y",
                 kOperatorBakeVersion, compositionOperatorName(op), resolution,
                 kThetaUnion, kInnerUnion, kBulgeAmplitude);
-  return fnv1a(text, std::strlen(text));
+  return detail::fnv1a(text, std::strlen(text));
 }
 
 size_t nodeFloatCount(int resolution) {
@@ -437,39 +414,32 @@ std::string operatorTableCacheFolder() {
 }
 
 std::string operatorTableCacheFileName(CompositionOperator op, int resolution) {
-  char hash[17];
-  std::snprintf(
-      hash, sizeof(hash), "%016llx",
-      static_cast<unsigned long long>(bakeParameterHash(op, resolution)));
-  return "operator-table-v" + std::to_string(kCacheFormatVersion) + "-" +
+  return "operator-table-v" +
+         std::to_string(kOperatorTableFile.format_version) + "-" +
          compositionOperatorName(op) + "-" + std::to_string(resolution) + "-" +
-         hash + ".bin";
+         detail::hashText(bakeParameterHash(op, resolution)) + ".bin";
 }
 
 bool saveOperatorTable(const OperatorTable& table, const std::string& path,
                        std::string* error) {
-  auto fail = [&](const std::string& why) {
-    if (error) *error = why;
+  if (table.nodes.size() != nodeFloatCount(table.resolution)) {
+    if (error)
+      *error = "the table holds " + std::to_string(table.nodes.size()) +
+               " floats, not 4 * " + std::to_string(table.resolution) + "^3";
     return false;
-  };
-  if (table.nodes.size() != nodeFloatCount(table.resolution))
-    return fail("the table holds " + std::to_string(table.nodes.size()) +
-                " floats, not 4 * " + std::to_string(table.resolution) + "^3");
-  CacheHeader header{};
-  std::memcpy(header.magic, kCacheMagic, sizeof(kCacheMagic));
-  header.format_version = kCacheFormatVersion;
-  header.byte_order = kByteOrderMark;
+  }
+  const size_t bytes = table.nodes.size() * sizeof(float);
+  TableFileHeader header{};
+  header.preamble = detail::cacheFilePreamble(kOperatorTableFile);
   header.op = static_cast<uint32_t>(table.op);
   header.resolution = static_cast<uint32_t>(table.resolution);
   header.parameter_hash = bakeParameterHash(table.op, table.resolution);
   header.float_count = table.nodes.size();
-  header.checksum = nodesChecksum(table.nodes);
-
+  header.checksum =
+      detail::cacheFileChecksum(kOperatorTableFile, table.nodes.data(), bytes);
   return detail::writeFileAtomically(
-      path,
-      {{&header, sizeof(header)},
-       {table.nodes.data(), table.nodes.size() * sizeof(float)}},
-      error);
+      path, {{&header, sizeof(header)}, {table.nodes.data(), bytes}},
+      detail::ParentFolder::kCreate, error);
 }
 
 bool loadOperatorTable(const std::string& path, CompositionOperator op,
@@ -489,21 +459,16 @@ bool loadOperatorTable(const std::string& path, CompositionOperator op,
   const uintmax_t size = fs::file_size(path, ec);
   if (ec)
     return fail("cannot read the size of '" + path + "': " + ec.message());
-  const uintmax_t expected = sizeof(CacheHeader) + floats * sizeof(float);
+  const uintmax_t expected = sizeof(TableFileHeader) + floats * sizeof(float);
   if (size != expected)
     return fail("'" + path + "' has " + std::to_string(size) +
                 " bytes, expected " + std::to_string(expected));
-  CacheHeader header{};
+  TableFileHeader header{};
   if (!in.read(reinterpret_cast<char*>(&header), sizeof(header)))
     return fail("cannot read the header of '" + path + "'");
-  if (std::memcmp(header.magic, kCacheMagic, sizeof(kCacheMagic)) != 0)
-    return fail("'" + path + "' is not an isk operator table");
-  if (header.format_version != kCacheFormatVersion)
-    return fail("'" + path + "' has format version " +
-                std::to_string(header.format_version) + ", expected " +
-                std::to_string(kCacheFormatVersion));
-  if (header.byte_order != kByteOrderMark)
-    return fail("'" + path + "' was written with another byte order");
+  if (detail::matchCacheFilePreamble(header.preamble, kOperatorTableFile, path,
+                                     error) != detail::PreambleMatch::kMatches)
+    return false;
   if (header.op != static_cast<uint32_t>(op) ||
       header.resolution != static_cast<uint32_t>(resolution) ||
       header.parameter_hash != bakeParameterHash(op, resolution) ||
@@ -518,8 +483,10 @@ bool loadOperatorTable(const std::string& path, CompositionOperator op,
   if (!in.read(reinterpret_cast<char*>(loaded.nodes.data()),
                static_cast<std::streamsize>(floats * sizeof(float))))
     return fail("cannot read the nodes of '" + path + "'");
-  if (nodesChecksum(loaded.nodes) != header.checksum)
-    return fail("'" + path + "' fails its checksum (corrupt)");
+  if (!detail::checkCacheFileChecksum(kOperatorTableFile, loaded.nodes.data(),
+                                      floats * sizeof(float), header.checksum,
+                                      path, error))
+    return false;
   *table = std::move(loaded);
   return true;
 }
@@ -527,11 +494,14 @@ bool loadOperatorTable(const std::string& path, CompositionOperator op,
 OperatorTable loadOrBakeOperatorTable(
     CompositionOperator op, int resolution, const std::string& folder,
     int threads, const std::function<void(float)>& progress,
-    OperatorTableOrigin* origin) {
+    OperatorTableOrigin* origin, std::vector<std::string>* warnings) {
   if (origin) *origin = OperatorTableOrigin::kBaked;
   if (folder.empty() || op == CompositionOperator::kUnion || resolution < 2 ||
       resolution > 512)
     return bakeOperatorTable(op, resolution, threads, progress);
+  auto warn = [&](const std::string& warning) {
+    if (warnings) warnings->push_back(warning);
+  };
   const std::string path =
       (fs::path(folder) / operatorTableCacheFileName(op, resolution)).string();
   std::error_code ec;
@@ -544,19 +514,15 @@ OperatorTable loadOrBakeOperatorTable(
       if (progress) progress(1.f);
       return table;
     }
-    std::fprintf(stderr,
-                 "isk: operator table cache unusable (%s); baking the %s "
-                 "table again\n",
-                 why.c_str(), compositionOperatorName(op));
+    warn("operator table cache unusable (" + why + "); baking the " +
+         compositionOperatorName(op) + " table again");
     if (origin) *origin = OperatorTableOrigin::kRebaked;
   }
   OperatorTable table = bakeOperatorTable(op, resolution, threads, progress);
   std::string why;
   if (!saveOperatorTable(table, path, &why))
-    std::fprintf(stderr,
-                 "isk: could not write the operator table cache (%s); the "
-                 "table will be baked again next time\n",
-                 why.c_str());
+    warn("could not write the operator table cache (" + why +
+         "); the table will be baked again next time");
   return table;
 }
 

@@ -135,24 +135,26 @@ namespace fs = std::filesystem;
 using detail::CacheReader;
 using detail::CacheWriter;
 
-constexpr uint32_t kFieldCacheFormat = 1;
 // Bumped whenever sampling, fitting or baking changes their results.
 constexpr uint32_t kFieldBuildVersion = 1;
-constexpr uint32_t kByteOrderMark = 0x01020304u;
-constexpr char kMagic[8] = {'I', 'S', 'K', 'F', 'I', 'E', 'L', 'D'};
+constexpr detail::CacheFileKind kFieldCacheFile = {
+    {'I', 'S', 'K', 'F', 'I', 'E', 'L', 'D'},
+    1,  // format version: bumping it orphans every file written
+    "an isk field cache",
+    detail::ChecksumWords::k64Bit};
 
-struct Header {
-  char magic[8];
-  uint32_t format_version;
-  uint32_t byte_order;
+// The 64-byte header of a field cache file; the payload follows.
+struct FieldCacheHeader {
+  detail::CacheFilePreamble preamble;
   uint64_t mesh_hash;
   uint64_t weights_hash;
   uint64_t skeleton_hash;
   uint64_t parameter_hash;
   uint64_t payload_bytes;
-  uint64_t checksum;
+  uint64_t checksum;  // of the payload
 };
-static_assert(sizeof(Header) == 64, "the header is 64 bytes, unpadded");
+static_assert(sizeof(FieldCacheHeader) == 64,
+              "the header is 64 bytes, unpadded");
 
 template <typename Matrix>
 uint64_t hashMatrix(const Matrix& m, uint64_t hash) {
@@ -211,13 +213,6 @@ uint64_t parameterHash(const ImplicitFieldsOptions& o) {
     h = detail::fnv1a(&samples, sizeof(samples), h);
   }
   return h;
-}
-
-std::string hex(uint64_t value) {
-  char text[17];
-  std::snprintf(text, sizeof(text), "%016llx",
-                static_cast<unsigned long long>(value));
-  return text;
 }
 
 void writeSamples(CacheWriter& w, const HermiteSamples& s) {
@@ -352,9 +347,9 @@ bool readPayload(const char* data, size_t size, int joint_count,
 
 std::string fieldCacheFileName(const Rig& rig,
                                const ImplicitFieldsOptions& options) {
-  return "fields-v" + std::to_string(kFieldCacheFormat) + "-" +
-         hex(detail::fnv1a(rig.source.data(), rig.source.size())) + "-" +
-         hex(parameterHash(options)) + ".bin";
+  return "fields-v" + std::to_string(kFieldCacheFile.format_version) + "-" +
+         detail::hashText(detail::fnv1a(rig.source.data(), rig.source.size())) +
+         "-" + detail::hashText(parameterHash(options)) + ".bin";
 }
 
 bool saveFieldCache(const ImplicitFields& fields, const Rig& rig,
@@ -366,19 +361,18 @@ bool saveFieldCache(const ImplicitFields& fields, const Rig& rig,
     return false;
   }
   const std::string payload = payloadOf(fields);
-  Header header{};
-  std::memcpy(header.magic, kMagic, sizeof(kMagic));
-  header.format_version = kFieldCacheFormat;
-  header.byte_order = kByteOrderMark;
+  FieldCacheHeader header{};
+  header.preamble = detail::cacheFilePreamble(kFieldCacheFile);
   header.mesh_hash = meshHash(rig.mesh);
   header.weights_hash = weightsHash(rig.weights);
   header.skeleton_hash = skeletonHash(rig.skeleton);
   header.parameter_hash = parameterHash(options);
   header.payload_bytes = payload.size();
-  header.checksum = detail::fnv1aWords(payload.data(), payload.size());
+  header.checksum = detail::cacheFileChecksum(kFieldCacheFile, payload.data(),
+                                              payload.size());
   return detail::writeFileAtomically(
       path, {{&header, sizeof(header)}, {payload.data(), payload.size()}},
-      error);
+      detail::ParentFolder::kCreate, error);
 }
 
 bool loadFieldCache(const std::string& path, const Rig& rig,
@@ -400,7 +394,7 @@ bool loadFieldCache(const std::string& path, const Rig& rig,
     return fail("cannot read the size of '" + path + "'");
   }
   const size_t size = static_cast<size_t>(st.st_size);
-  if (size < sizeof(Header)) {
+  if (size < sizeof(FieldCacheHeader)) {
     ::close(fd);
     return fail("'" + path + "' is shorter than its header (corrupt)");
   }
@@ -413,17 +407,19 @@ bool loadFieldCache(const std::string& path, const Rig& rig,
     ~Unmap() { ::munmap(p, n); }
   } unmap{mapped, size};
   const char* bytes = static_cast<const char*>(mapped);
-  Header header{};
+  FieldCacheHeader header{};
   std::memcpy(&header, bytes, sizeof(header));
-  if (std::memcmp(header.magic, kMagic, sizeof(kMagic)) != 0)
-    return fail("'" + path + "' is not an isk field cache");
-  if (header.format_version != kFieldCacheFormat)
-    return fail("'" + path + "' has format version " +
-                    std::to_string(header.format_version) + ", expected " +
-                    std::to_string(kFieldCacheFormat),
-                true);
-  if (header.byte_order != kByteOrderMark)
-    return fail("'" + path + "' was written with another byte order", true);
+  std::string mismatch;
+  switch (detail::matchCacheFilePreamble(header.preamble, kFieldCacheFile, path,
+                                         &mismatch)) {
+    case detail::PreambleMatch::kMatches:
+      break;
+    case detail::PreambleMatch::kOtherKind:
+      return fail(mismatch);
+    case detail::PreambleMatch::kOtherFormatVersion:
+    case detail::PreambleMatch::kOtherByteOrder:
+      return fail(mismatch, true);  // ours, from another build or machine
+  }
   if (header.parameter_hash != parameterHash(options))
     return fail("'" + path + "' was built with other parameters", true);
   if (header.mesh_hash != meshHash(rig.mesh))
@@ -435,15 +431,17 @@ bool loadFieldCache(const std::string& path, const Rig& rig,
     return fail("'" + path + "' is stale: the skin weights changed", true);
   if (header.skeleton_hash != skeletonHash(rig.skeleton))
     return fail("'" + path + "' is stale: the skeleton changed", true);
-  if (header.payload_bytes != size - sizeof(Header))
-    return fail("'" + path + "' has " + std::to_string(size) +
-                " bytes, its header says " +
-                std::to_string(header.payload_bytes + sizeof(Header)) +
-                " (corrupt)");
-  const char* payload = bytes + sizeof(Header);
-  const size_t payload_size = size - sizeof(Header);
-  if (detail::fnv1aWords(payload, payload_size) != header.checksum)
-    return fail("'" + path + "' fails its checksum (corrupt)");
+  if (header.payload_bytes != size - sizeof(FieldCacheHeader))
+    return fail(
+        "'" + path + "' has " + std::to_string(size) +
+        " bytes, its header says " +
+        std::to_string(header.payload_bytes + sizeof(FieldCacheHeader)) +
+        " (corrupt)");
+  const char* payload = bytes + sizeof(FieldCacheHeader);
+  const size_t payload_size = size - sizeof(FieldCacheHeader);
+  if (!detail::checkCacheFileChecksum(kFieldCacheFile, payload, payload_size,
+                                      header.checksum, path, error))
+    return false;
   if (!readPayload(payload, payload_size, rig.skeleton.jointCount(), fields))
     return fail("'" + path + "' holds an inconsistent payload (corrupt)");
   return true;

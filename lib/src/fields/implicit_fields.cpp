@@ -2,14 +2,16 @@
 
 #include <array>
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 #include <map>
+#include <string>
+#include <utility>
+#include <vector>
 
-#include "isk/core/error.hpp"
-#include "isk/fields/field_cache.hpp"
 #include "core/parallel_for.hpp"
+#include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/fields/field_cache.hpp"
 
 namespace isk {
 namespace {
@@ -53,24 +55,20 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
   return s;
 }
 
-}  // namespace
+// What every stage of one build reads.
+struct BuildInputs {
+  const Rig& rig;
+  const ImplicitFieldsOptions& options;
+  int threads;  // resolved: never 0
 
-const char* fieldCacheOriginName(FieldCacheOrigin origin) {
-  switch (origin) {
-    case FieldCacheOrigin::kOff:
-      return "off";
-    case FieldCacheOrigin::kBuilt:
-      return "built";
-    case FieldCacheOrigin::kLoaded:
-      return "loaded";
-    case FieldCacheOrigin::kRebuilt:
-      return "rebuilt";
+  void report(const char* stage, float fraction) const {
+    if (options.progress) options.progress(stage, fraction);
   }
-  return "?";
-}
+};
 
-ImplicitFields buildImplicitFields(const Rig& rig,
-                                   const ImplicitFieldsOptions& options) {
+// Throws isk::Error(kInvalidArgument) naming the first bad option, or the
+// rig's first problem.
+void checkBuildInputs(const Rig& rig, const ImplicitFieldsOptions& options) {
   // 256^3 float4 is already 256 MiB per bone.
   if (options.grid_resolution < 2 || options.grid_resolution > 256)
     throw Error(
@@ -104,164 +102,232 @@ ImplicitFields buildImplicitFields(const Rig& rig,
   }
   validateCompositionOptions(rig.skeleton, options.composition)
       .throwIfFailed("buildImplicitFields");
-  auto report = [&](const char* stage, float fraction) {
-    if (options.progress) options.progress(stage, fraction);
-  };
-  const int threads = detail::threadCount(options.threads);
-  ImplicitFields out;
+}
 
-  auto start = std::chrono::steady_clock::now();
-  report("partition", 0);
-  out.partition = partitionMesh(rig);
+// One mesh part per bone; its warnings start the build's.
+void partitionStage(const BuildInputs& in, ImplicitFields& out) {
+  const auto start = std::chrono::steady_clock::now();
+  in.report("partition", 0);
+  out.partition = partitionMesh(in.rig);
   out.warnings = out.partition.warnings;
-  report("partition", 1);
+  in.report("partition", 1);
   out.times.partition_ms = millisecondsSince(start);
-  const Skeleton& skeleton = rig.skeleton;
+}
 
-  // The cache: samples, fits and grids of this rig and these parameters.
-  std::string cache_path;
-  if (options.cache && !options.edit_samples) {
-    const std::string folder = options.cache_folder.empty()
-                                   ? operatorTableCacheFolder()
-                                   : options.cache_folder;
-    if (!folder.empty())
-      cache_path =
-          (std::filesystem::path(folder) / fieldCacheFileName(rig, options))
-              .string();
+// The cache file of this rig and these options; empty when no cache is
+// asked for or none can be kept (edited samples cannot be part of a key).
+std::string fieldCachePath(const BuildInputs& in) {
+  if (!in.options.cache || in.options.edit_samples) return "";
+  const std::string folder = in.options.cache_folder.empty()
+                                 ? operatorTableCacheFolder()
+                                 : in.options.cache_folder;
+  if (folder.empty()) return "";
+  return (std::filesystem::path(folder) /
+          fieldCacheFileName(in.rig, in.options))
+      .string();
+}
+
+// The samples, fits and grids from the cache file at `cache_path`, when a
+// valid one is there. A file that is there but unusable leaves its reason
+// in out.cache_note and in *cache_warnings.
+bool cacheLoadStage(const BuildInputs& in, const std::string& cache_path,
+                    ImplicitFields& out,
+                    std::vector<std::string>* cache_warnings) {
+  if (cache_path.empty()) return false;
+  out.cache_file = cache_path;
+  out.cache_origin = FieldCacheOrigin::kBuilt;
+  std::error_code ec;
+  if (!std::filesystem::exists(std::filesystem::symlink_status(cache_path, ec)))
+    return false;
+  const auto start = std::chrono::steady_clock::now();
+  in.report("loading", 0);
+  std::string why;
+  if (!loadFieldCache(cache_path, in.rig, in.options, &out, &why)) {
+    out.cache_origin = FieldCacheOrigin::kRebuilt;
+    out.cache_note = why;
+    out.warnings = out.partition.warnings;
+    cache_warnings->push_back("field cache unusable (" + why +
+                              "); building the fields again");
+    return false;
   }
-  bool loaded = false;
-  if (!cache_path.empty()) {
-    out.cache_file = cache_path;
-    out.cache_origin = FieldCacheOrigin::kBuilt;
-    std::error_code ec;
-    if (std::filesystem::exists(
-            std::filesystem::symlink_status(cache_path, ec))) {
-      start = std::chrono::steady_clock::now();
-      report("loading", 0);
-      std::string why;
-      if (loadFieldCache(cache_path, rig, options, &out, &why)) {
-        loaded = true;
-        out.cache_origin = FieldCacheOrigin::kLoaded;
-        out.times.sampling_ms = millisecondsSince(start);
-        report("loading", 1);
-      } else {
-        out.cache_origin = FieldCacheOrigin::kRebuilt;
-        out.cache_note = why;
-        out.warnings = out.partition.warnings;
-        std::fprintf(stderr,
-                     "isk: field cache unusable (%s); building the fields "
-                     "again\n",
-                     why.c_str());
-      }
+  out.cache_origin = FieldCacheOrigin::kLoaded;
+  out.times.sampling_ms = millisecondsSince(start);
+  in.report("loading", 1);
+  return true;
+}
+
+// Poisson-disk samples of every part (section 4.1), with the fallbacks of
+// the header comment, then the application's edits.
+std::vector<BoneSamples> samplingStage(const BuildInputs& in,
+                                       ImplicitFields& out) {
+  const auto start = std::chrono::steady_clock::now();
+  const Skeleton& skeleton = in.rig.skeleton;
+  const std::vector<int>& joints = out.partition.field_joints;
+  std::vector<BoneSamples> samples(joints.size());
+  for (size_t i = 0; i < joints.size(); ++i) {
+    const int j = joints[i];
+    const std::string name = "joint '" + skeleton.joints[j].name + "'";
+    BoneSamplingOptions sampling = in.options.sampling;
+    if (const auto it = in.options.joint_samples.find(skeleton.joints[j].name);
+        it != in.options.joint_samples.end())
+      sampling.target_samples = it->second;
+    samples[i] = sampleBonePart(in.rig.mesh, out.partition, j, sampling);
+    if (samples[i].all().size() < 4 && samples[i].culled > 0) {
+      BoneSamplingOptions uncut = sampling;
+      uncut.culling_h = 0;
+      samples[i] = sampleBonePart(in.rig.mesh, out.partition, j, uncut);
+      out.warnings.push_back(name +
+                             ": fewer than 4 samples after culling; "
+                             "sampled without culling planes");
     }
+    if (samples[i].all().size() < 4) {
+      samples[i].surface = vertexSamples(in.rig.mesh, out.partition, j);
+      out.warnings.push_back(
+          name + ": part too small for Poisson-disk sampling (" +
+          std::to_string(out.partition.part_vertices[j].size()) +
+          " vertices); its vertices are the samples");
+    }
+    in.report("sampling", static_cast<float>(i + 1) / joints.size());
   }
-  if (!loaded) {
-    start = std::chrono::steady_clock::now();
-    const std::vector<int>& joints = out.partition.field_joints;
-    std::vector<BoneSamples> samples(joints.size());
-    for (size_t i = 0; i < joints.size(); ++i) {
-      const int j = joints[i];
-      const std::string name = "joint '" + skeleton.joints[j].name + "'";
-      BoneSamplingOptions sampling = options.sampling;
-      if (const auto it = options.joint_samples.find(skeleton.joints[j].name);
-          it != options.joint_samples.end())
-        sampling.target_samples = it->second;
-      samples[i] = sampleBonePart(rig.mesh, out.partition, j, sampling);
-      if (samples[i].all().size() < 4 && samples[i].culled > 0) {
-        BoneSamplingOptions uncut = sampling;
-        uncut.culling_h = 0;
-        samples[i] = sampleBonePart(rig.mesh, out.partition, j, uncut);
-        out.warnings.push_back(name +
-                               ": fewer than 4 samples after culling; "
-                               "sampled without culling planes");
-      }
-      if (samples[i].all().size() < 4) {
-        samples[i].surface = vertexSamples(rig.mesh, out.partition, j);
-        out.warnings.push_back(
-            name + ": part too small for Poisson-disk sampling (" +
-            std::to_string(out.partition.part_vertices[j].size()) +
-            " vertices); its vertices are the samples");
-      }
-      report("sampling", static_cast<float>(i + 1) / joints.size());
-    }
-    if (options.edit_samples) options.edit_samples(samples);
-    out.times.sampling_ms = millisecondsSince(start);
+  if (in.options.edit_samples) in.options.edit_samples(samples);
+  out.times.sampling_ms = millisecondsSince(start);
+  return samples;
+}
 
-    start = std::chrono::steady_clock::now();
-    std::vector<BoneField> fields(samples.size());
-    std::vector<std::vector<std::string>> fit_warnings(samples.size());
-    std::vector<char> fitted(samples.size(), 0);
-    parallelFor(
-        static_cast<int>(samples.size()), threads,
-        [&](int i) {
-          try {
-            fields[i] =
-                fitBoneField(skeleton, rig.mesh.positions, out.partition,
-                             samples[i], &fit_warnings[i]);
-            fitted[i] = 1;
-          } catch (const Error& e) {
-            fit_warnings[i].push_back(std::string(e.what()) +
-                                      "; this bone gets no field");
-          }
-        },
-        [&](float f) { report("fitting", f); });
-    for (size_t i = 0; i < samples.size(); ++i) {
-      out.warnings.insert(out.warnings.end(), fit_warnings[i].begin(),
-                          fit_warnings[i].end());
-      if (!fitted[i]) continue;
-      out.samples.push_back(std::move(samples[i]));
-      out.fields.push_back(std::move(fields[i]));
-    }
-    out.times.fitting_ms = millisecondsSince(start);
+// One HRBF fit per part (eq. 1), in parallel; a part whose fit fails gets
+// no field (and its samples are dropped with it), with a warning.
+void fittingStage(const BuildInputs& in, std::vector<BoneSamples> samples,
+                  ImplicitFields& out) {
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<BoneField> fields(samples.size());
+  std::vector<std::vector<std::string>> fit_warnings(samples.size());
+  std::vector<char> fitted(samples.size(), 0);
+  parallelFor(
+      static_cast<int>(samples.size()), in.threads,
+      [&](int i) {
+        try {
+          fields[i] = fitBoneField(in.rig.skeleton, in.rig.mesh.positions,
+                                   out.partition, samples[i], &fit_warnings[i]);
+          fitted[i] = 1;
+        } catch (const Error& e) {
+          fit_warnings[i].push_back(std::string(e.what()) +
+                                    "; this bone gets no field");
+        }
+      },
+      [&](float f) { in.report("fitting", f); });
+  for (size_t i = 0; i < samples.size(); ++i) {
+    out.warnings.insert(out.warnings.end(), fit_warnings[i].begin(),
+                        fit_warnings[i].end());
+    if (!fitted[i]) continue;
+    out.samples.push_back(std::move(samples[i]));
+    out.fields.push_back(std::move(fields[i]));
+  }
+  out.times.fitting_ms = millisecondsSince(start);
+}
 
-    start = std::chrono::steady_clock::now();
-    out.grids.resolution = options.grid_resolution;
-    out.grids.grids.resize(out.fields.size());
-    parallelFor(
-        static_cast<int>(out.fields.size()), threads,
-        [&](int i) {
-          out.grids.grids[i] =
-              bakeField(out.fields[i], options.grid_resolution);
-        },
-        [&](float f) { report("baking", f); });
-    out.grids.field_of_joint.assign(skeleton.jointCount(), -1);
-    for (int i = 0; i < out.grids.fieldCount(); ++i)
-      out.grids.field_of_joint[out.grids.grids[i].joint] = i;
-    out.times.baking_ms = millisecondsSince(start);
-    if (!cache_path.empty()) {
-      std::string why;
-      if (!saveFieldCache(out, rig, options, cache_path, &why))
-        std::fprintf(stderr,
-                     "isk: could not write the field cache (%s); the fields "
-                     "will be built again next time\n",
-                     why.c_str());
-    }
-  }  // !loaded
+// Every field baked into its N^3 grid, in parallel.
+void bakingStage(const BuildInputs& in, ImplicitFields& out) {
+  const auto start = std::chrono::steady_clock::now();
+  const int resolution = in.options.grid_resolution;
+  out.grids.resolution = resolution;
+  out.grids.grids.resize(out.fields.size());
+  parallelFor(
+      static_cast<int>(out.fields.size()), in.threads,
+      [&](int i) { out.grids.grids[i] = bakeField(out.fields[i], resolution); },
+      [&](float f) { in.report("baking", f); });
+  out.grids.field_of_joint.assign(in.rig.skeleton.jointCount(), -1);
+  for (int i = 0; i < out.grids.fieldCount(); ++i)
+    out.grids.field_of_joint[out.grids.grids[i].joint] = i;
+  out.times.baking_ms = millisecondsSince(start);
+}
 
-  start = std::chrono::steady_clock::now();
-  report("operators", 0);
-  out.composition = buildComposition(skeleton, out.grids, options.composition,
-                                     [&](float f) { report("operators", f); });
+// Writes what was just built to `cache_path` (none: nothing); a failure is
+// a warning, never an error.
+void cacheSaveStage(const BuildInputs& in, const std::string& cache_path,
+                    const ImplicitFields& out,
+                    std::vector<std::string>* cache_warnings) {
+  if (cache_path.empty()) return;
+  std::string why;
+  if (!saveFieldCache(out, in.rig, in.options, cache_path, &why))
+    cache_warnings->push_back("could not write the field cache (" + why +
+                              "); the fields will be built again next time");
+}
+
+// The operator of each joint pair and its tables (section 4.2).
+void operatorsStage(const BuildInputs& in, ImplicitFields& out) {
+  const auto start = std::chrono::steady_clock::now();
+  in.report("operators", 0);
+  out.composition =
+      buildComposition(in.rig.skeleton, out.grids, in.options.composition,
+                       [&](float f) { in.report("operators", f); });
   out.warnings.insert(out.warnings.end(), out.composition.warnings.begin(),
                       out.composition.warnings.end());
   out.times.operators_ms = millisecondsSince(start);
+}
 
-  if (options.grid_precision == GridPrecision::kHalf)
+// Half-precision grids are rounded before the iso values are taken, so
+// that the rest pose lies on the iso-surfaces of the grids evaluated.
+void precisionStage(const BuildInputs& in, ImplicitFields& out) {
+  if (in.options.grid_precision == GridPrecision::kHalf)
     roundGridsToHalf(out.grids);
+}
 
-  start = std::chrono::steady_clock::now();
-  report("iso values", 0);
-  out.iso_values = computeIsoValues(out.grids, rig.mesh.positions,
+// Each vertex's composed field value at the bind pose: the value tracking
+// brings it back to.
+void isoValuesStage(const BuildInputs& in, ImplicitFields& out) {
+  const auto start = std::chrono::steady_clock::now();
+  in.report("iso values", 0);
+  out.iso_values = computeIsoValues(out.grids, in.rig.mesh.positions,
                                     &out.composition, &out.outside_vertices);
   if (!out.outside_vertices.empty())
     out.warnings.push_back(
         std::to_string(out.outside_vertices.size()) +
         " vertices lie outside every field's support (first: vertex " +
         std::to_string(out.outside_vertices.front()) + " of " +
-        rig.mesh.describeVertex(out.outside_vertices.front()) +
+        in.rig.mesh.describeVertex(out.outside_vertices.front()) +
         "); surface tracking leaves them where skinning puts them");
-  report("iso values", 1);
+  in.report("iso values", 1);
   out.times.iso_ms = millisecondsSince(start);
+}
+
+}  // namespace
+
+const char* fieldCacheOriginName(FieldCacheOrigin origin) {
+  switch (origin) {
+    case FieldCacheOrigin::kOff:
+      return "off";
+    case FieldCacheOrigin::kBuilt:
+      return "built";
+    case FieldCacheOrigin::kLoaded:
+      return "loaded";
+    case FieldCacheOrigin::kRebuilt:
+      return "rebuilt";
+  }
+  return "?";
+}
+
+ImplicitFields buildImplicitFields(const Rig& rig,
+                                   const ImplicitFieldsOptions& options) {
+  checkBuildInputs(rig, options);
+  const BuildInputs in{rig, options, detail::threadCount(options.threads)};
+  ImplicitFields out;
+  partitionStage(in, out);
+  // Samples, fits and grids: from the cache when it holds them.
+  const std::string cache_path = fieldCachePath(in);
+  std::vector<std::string> cache_warnings;
+  if (!cacheLoadStage(in, cache_path, out, &cache_warnings)) {
+    std::vector<BoneSamples> samples = samplingStage(in, out);
+    fittingStage(in, std::move(samples), out);
+    bakingStage(in, out);
+    cacheSaveStage(in, cache_path, out, &cache_warnings);
+  }
+  // After the save: a file keeps the warnings of its build, not of its
+  // cache's own trouble.
+  out.warnings.insert(out.warnings.end(), cache_warnings.begin(),
+                      cache_warnings.end());
+  operatorsStage(in, out);
+  precisionStage(in, out);
+  isoValuesStage(in, out);
   return out;
 }
 

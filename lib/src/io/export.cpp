@@ -1,39 +1,26 @@
 #include "isk/io/export.hpp"
 
-#include <cerrno>
 #include <charconv>
 #include <cstdint>
-#include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <functional>
 #include <string>
-#include <system_error>
+#include <utility>
 
-#ifdef _WIN32
-#include <process.h>
-#else
-#include <unistd.h>
-#endif
-
+#include "core/cache_file.hpp"
 #include "isk/core/error.hpp"
 
 namespace isk {
 namespace {
 
-int processId() {
-#ifdef _WIN32
-  return _getpid();
-#else
-  return static_cast<int>(getpid());
-#endif
-}
-
-// Buffered output to a FILE that remembers the first failure, so the writers
-// stay linear and the error is reported once with errno's reason.
+// Buffered output to a file written atomically: the writers stay linear,
+// the file gets 1 MiB writes, and its first failure is reported once at the
+// end (AtomicFileWriter keeps it).
 class FileSink {
  public:
-  explicit FileSink(std::FILE* file) : file_(file) { buffer_.reserve(kChunk); }
+  explicit FileSink(detail::AtomicFileWriter& file) : file_(file) {
+    buffer_.reserve(kChunk);
+  }
 
   void append(const char* data, size_t size) {
     buffer_.append(data, size);
@@ -43,22 +30,14 @@ class FileSink {
   void append(char c) { append(&c, 1); }
 
   void flush() {
-    if (!buffer_.empty() && error_.empty()) {
-      if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_) !=
-          buffer_.size()) {
-        error_ = std::string("write failed: ") + std::strerror(errno);
-      }
-    }
+    if (!buffer_.empty()) file_.write(buffer_.data(), buffer_.size());
     buffer_.clear();
   }
 
-  const std::string& error() const { return error_; }
-
  private:
   static constexpr size_t kChunk = 1 << 20;
-  std::FILE* file_;
+  detail::AtomicFileWriter& file_;
   std::string buffer_;
-  std::string error_;
 };
 
 // Shortest text that reads back to the same float, independent of the
@@ -184,36 +163,17 @@ void checkInputs(const std::string& path, const Matrix3Xf& positions,
   }
 }
 
-// Runs `write` into a temporary file in the target's folder and renames it
-// to `path` when complete, so the rename is atomic and a failure never leaves
-// a truncated file under `path`.
-void writeThroughTemporary(const std::string& path,
-                           const std::function<void(FileSink&)>& write) {
-  const std::string temp_path = path + ".tmp-" + std::to_string(processId());
-  std::FILE* file = std::fopen(temp_path.c_str(), "wb");
-  if (!file) {
-    throw Error(ErrorCode::kIo, path + ": cannot open " + temp_path +
-                                    " for writing: " + std::strerror(errno));
-  }
-  std::string reason;
-  {
-    FileSink sink(file);
-    write(sink);
-    sink.flush();
-    reason = sink.error();
-  }
-  if (std::fclose(file) != 0 && reason.empty()) {
-    reason = std::string("close failed: ") + std::strerror(errno);
-  }
-  std::error_code ec;
-  if (reason.empty()) {
-    std::filesystem::rename(temp_path, path, ec);
-    if (ec) reason = "cannot rename " + temp_path + ": " + ec.message();
-  }
-  if (!reason.empty()) {
-    std::filesystem::remove(temp_path, ec);
-    throw Error(ErrorCode::kIo, path + ": " + reason);
-  }
+// Runs `write` into a temporary file beside `path` and renames it to `path`
+// when complete, so a failure never leaves a partial file under `path`.
+// The folder must exist: a mistyped folder is an error, not a new folder.
+void writeAtomically(const std::string& path,
+                     const std::function<void(FileSink&)>& write) {
+  detail::AtomicFileWriter file(path, detail::ParentFolder::kMustExist);
+  if (file.failed()) throw Error(ErrorCode::kIo, path + ": " + file.error());
+  FileSink sink(file);
+  write(sink);
+  sink.flush();
+  if (!file.commit()) throw Error(ErrorCode::kIo, path + ": " + file.error());
 }
 
 }  // namespace
@@ -222,7 +182,7 @@ void writeMesh(const std::string& path, MeshFormat format,
                const Matrix3Xf& positions, const Matrix3Xf* normals,
                const TriangleMatrix& triangles) {
   checkInputs(path, positions, normals, triangles);
-  writeThroughTemporary(path, [&](FileSink& sink) {
+  writeAtomically(path, [&](FileSink& sink) {
     if (format == MeshFormat::kObj) {
       writeObj(sink, positions, normals, triangles);
     } else {
@@ -232,7 +192,10 @@ void writeMesh(const std::string& path, MeshFormat format,
 }
 
 void writeTextFile(const std::string& path, const std::string& text) {
-  writeThroughTemporary(path, [&](FileSink& sink) { sink.append(text); });
+  std::string why;
+  if (!detail::writeFileAtomically(path, {{text.data(), text.size()}},
+                                   detail::ParentFolder::kMustExist, &why))
+    throw Error(ErrorCode::kIo, path + ": " + why);
 }
 
 }  // namespace isk

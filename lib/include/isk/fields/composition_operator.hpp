@@ -141,11 +141,13 @@ OperatorTable bakeOperatorTable(
 
 // The table of (op, resolution), made once per process and shared: loaded
 // from the on-disk cache below when a valid file is there, else baked and
-// written to it (baking the blend's 128^3 table takes about 0.4 s on 2
-// cores, loading its 32 MiB far less).
+// written to it (loading a table costs far less than baking it). What the
+// cache could not do (a bad file re-baked, a file that could not be
+// written) is appended to *warnings, by the call that made the table.
 std::shared_ptr<const OperatorTable> sharedOperatorTable(
     CompositionOperator op, int resolution = 128,
-    const std::function<void(float)>& progress = nullptr);
+    const std::function<void(float)>& progress = nullptr,
+    std::vector<std::string>* warnings = nullptr);
 
 // On-disk cache of baked operator tables.
 //
@@ -160,7 +162,7 @@ std::shared_ptr<const OperatorTable> sharedOperatorTable(
 // Files are written to a temporary file in the same folder and renamed, so
 // a reader never sees a partial file; nothing but the table's own file is
 // ever replaced. A file that cannot be read or fails validation (size,
-// header, key, checksum) is reported on stderr and the table is re-baked
+// header, key, checksum) is reported as a warning and the table is re-baked
 // and rewritten: the cache never makes a table fail.
 
 // The cache folder as described above; empty when the cache is disabled or
@@ -189,11 +191,15 @@ enum class OperatorTableOrigin {
 
 // The table of (op, resolution) from the cache folder `folder` (empty: no
 // cache, nothing is read or written), else baked on `threads` threads and
-// written there. Throws like bakeOperatorTable for a bad operator or
+// written there. A bad cache file ("operator table cache unusable (<why>);
+// baking the blend table again") or a failed write ("could not write the
+// operator table cache (<why>); ...") is appended to *warnings; the library
+// prints nothing. Throws like bakeOperatorTable for a bad operator or
 // resolution, never for the cache.
 OperatorTable loadOrBakeOperatorTable(
     CompositionOperator op, int resolution, const std::string& folder,
     int threads = 0, const std::function<void(float)>& progress = nullptr,
-    OperatorTableOrigin* origin = nullptr);
+    OperatorTableOrigin* origin = nullptr,
+    std::vector<std::string>* warnings = nullptr);
 
 }  // namespace isk

@@ -16,11 +16,12 @@
 // counts, grid resolution, a build version bumped whenever the fitting or
 // baking changes), payload size and a checksum of the payload). A file
 // whose mesh, weights or skeleton hash differs from the rig's is stale: it
-// is reported (naming what changed), rebuilt and replaced, never used. A
-// file that fails its size, header, checksum or payload checks is reported
-// as corrupt and rebuilt. Files are written to a temporary file beside the
-// target and renamed (the operator tables' machinery), so a reader never
-// sees a partial file. The cache never makes a build fail.
+// is reported (ImplicitFields::cache_note and a warning naming what
+// changed), rebuilt and replaced, never used. A file that fails its size,
+// header, checksum or payload checks is reported as corrupt and rebuilt.
+// Files are written to a temporary file beside the target and renamed (the
+// same atomic write as the operator tables'), so a reader never sees a
+// partial file. The cache never makes a build fail.
 #pragma once
 
 #include <string>

@@ -41,13 +41,14 @@ struct ImplicitFieldsOptions {
   // Per-joint Poisson-disk targets by joint name (replace
   // sampling.target_samples for that joint's part; 1..100000).
   std::map<std::string, int> joint_samples;
-  // On-disk cache of the built fields (isk/fields/field_cache.hpp): when true, the
-  // samples, fits and baked grids are loaded from `cache_folder` (empty:
+  // On-disk cache of the built fields (isk/fields/field_cache.hpp): when true,
+  // the samples, fits and baked grids are loaded from `cache_folder` (empty:
   // operatorTableCacheFolder(), i.e. $ISK_CACHE_DIR, "off" disabling it)
   // when a valid file for this rig and these options is there, else built
   // and written there. A stale file (mesh, weights or skeleton changed) or a
-  // corrupt one is reported on stderr and rebuilt, never used. Ignored when
-  // `edit_samples` is set (a function cannot be part of the key).
+  // corrupt one is reported (cache_note and `warnings`) and rebuilt, never
+  // used. Ignored when `edit_samples` is set (a function cannot be part of
+  // the key).
   bool cache = false;
   std::string cache_folder;
   // Progress: `stage` is "partition", "loading" (from the cache, which then
@@ -91,7 +92,9 @@ struct ImplicitFields {
   std::vector<float> iso_values;
   std::vector<int> outside_vertices;  // vertices outside every support
   // One sentence each: empty or degenerate parts, re-sampled or dropped
-  // fields, regularised fits, named joints without a pair.
+  // fields, regularised fits, named joints without a pair, a cache file
+  // that was unusable or could not be written. The library prints nothing:
+  // showing them is the application's choice.
   std::vector<std::string> warnings;
   ImplicitFieldsTimes times;
   FieldCacheOrigin cache_origin = FieldCacheOrigin::kOff;

@@ -4,7 +4,8 @@
 // non-manifold triangles ("complex edge") on insertion, and an export must
 // keep every triangle and the input vertex order. Files are written to a
 // temporary name beside the target and renamed when complete, so a failure
-// never leaves a partial file under the final name.
+// never leaves a partial file under the final name; only a regular file is
+// ever replaced, and the target's folder must exist.
 #pragma once
 
 #include <string>
@@ -24,8 +25,8 @@ void writeMesh(const std::string& path, MeshFormat format,
                const Matrix3Xf& positions, const Matrix3Xf* normals,
                const TriangleMatrix& triangles);
 
-// Writes `text` to `path` the same way (temporary file, then rename).
-// Throws isk::Error(kIo) naming the path.
+// Writes `text` (any bytes) to `path` the same way (temporary file, then
+// rename). Throws isk::Error(kIo) naming the path.
 void writeTextFile(const std::string& path, const std::string& text);
 
 }  // namespace isk
