@@ -63,6 +63,7 @@
 #include "isk/implicit_crowd.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/tools/mesh_metrics.hpp"
+#include "tracking/tracking_tuning.hpp"
 
 namespace isk::bench {
 namespace {
@@ -224,15 +225,16 @@ void framesInTurn(int64_t frame, const Frame& run_frame, double& true_ms,
 void implicitLever(benchmark::State& state, const Case& c, int device,
                    const std::string& lever) {
   ImplicitSkinnerOptions options;
-  if (lever == "no-neighbourhoods")
-    options.tracking.field_neighbourhoods = false;
-  if (lever == "no-march-order") options.tracking.march_order = false;
-  if (lever == "no-occupied-cells") options.tracking.occupied_cells = false;
-  if (lever == "no-value-bounds") options.tracking.value_bounds = false;
-  if (lever == "no-lane-tests") options.tracking.lane_tests = false;
-  if (lever == "no-active-vertices") options.tracking.active_vertices = false;
+  detail::TrackingTuning tuning;
+  if (lever == "no-neighbourhoods") tuning.field_neighbourhoods = false;
+  if (lever == "no-march-order") tuning.march_order = false;
+  if (lever == "no-occupied-cells") tuning.occupied_cells = false;
+  if (lever == "no-value-bounds") tuning.value_bounds = false;
+  if (lever == "no-lane-tests") tuning.lane_tests = false;
+  if (lever == "no-active-vertices") tuning.active_vertices = false;
   if (lever == "no-neighbourhood-cells")
-    options.tracking.neighbourhood_cells = 1;  // the whole box
+    tuning.neighbourhood_cells = 1;  // the whole box
+  options.tracking = detail::withTuning(options.tracking, tuning);
   if (lever.rfind("sigma-", 0) == 0)
     options.tracking.sigma = std::stof(lever.substr(6));
   const Rig& rig = c.rig();

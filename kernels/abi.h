@@ -50,7 +50,7 @@
 #define ISK_REACH_MAX 254
 
 // --- Fields and operators --------------------------------------------------
-// float4 per field in field_params (fields.cl's layout).
+// float4 per field in field_params (fields/sample.cl's layout).
 #define ISK_FIELD_PARAM_STRIDE 7
 // Samples of each theta controller over alpha in [0, pi].
 #define ISK_CONTROLLER_SAMPLES 65
@@ -66,14 +66,14 @@
 #define ISK_COMPOSITION_ARG_COUNT 6
 #define ISK_CONTACT_ARG_COUNT 12
 
-// evaluate_fields's arguments (fields.cl).
+// evaluate_fields's arguments (fields/evaluate.cl).
 #define ISK_EVALUATE_ARG_FIELDS 2
 #define ISK_EVALUATE_ARG_COMPOSITION \
   (ISK_EVALUATE_ARG_FIELDS + ISK_FIELD_ARG_COUNT)
 #define ISK_EVALUATE_ARG_OUTPUTS \
   (ISK_EVALUATE_ARG_COMPOSITION + ISK_COMPOSITION_ARG_COUNT)
 
-// track_project's arguments (tracking.cl).
+// track_project's arguments (tracking/project.cl).
 #define ISK_PROJECT_ARG_CONTACT 8
 #define ISK_PROJECT_ARG_FIELDS (ISK_PROJECT_ARG_CONTACT + ISK_CONTACT_ARG_COUNT)
 #define ISK_PROJECT_ARG_COMPOSITION \

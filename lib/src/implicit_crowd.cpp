@@ -6,9 +6,10 @@
 #include <limits>
 #include <string>
 
+#include "frame_pipeline.hpp"
 #include "isk/core/error.hpp"
-#include "skinner_fields.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "skinner_fields.hpp"
 
 namespace isk {
 
@@ -206,19 +207,13 @@ struct ImplicitCrowd::State {
     int instances = 0, vertices = 0, joints = 0;
     std::vector<std::string> joint_names;
   };
-  std::shared_ptr<ClContext> context;
-  ImplicitSkinnerOptions options;
   std::vector<Character> characters;
   // Per instance: its character, first result row and first joint.
   std::vector<int> character_of, first_vertex, first_joint;
   int instances = 0, vertices = 0, joints = 0;  // all instances'
-  std::unique_ptr<const TrackingMesh> tracking_mesh;
-  std::unique_ptr<ClSkinning> skinning;
-  std::unique_ptr<ClFieldEvaluation> field_evaluation;
-  std::unique_ptr<ClSurfaceTracking> tracking;
+  // The device parts, shared with ImplicitSkinner (frame_pipeline.hpp).
+  std::unique_ptr<detail::DeviceFramePipeline> pipeline;
   TransformList staging;  // every instance's transforms, one after another
-  ImplicitStageTimes times;
-  bool has_run = false;
 };
 
 ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context, const Rig& rig,
@@ -277,8 +272,6 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context,
     invalid("ImplicitCrowd: " + counts + " are more than the " +
             std::to_string(kMaxFields) + " fields a crowd can hold");
   }
-  s.context = std::move(context);
-  s.options = options;
   long long vertices = 0, joints = 0, influences = 0;
   std::vector<TrackingMesh> ones;  // one instance's tracking mesh each
   ones.reserve(characters.size());
@@ -323,15 +316,11 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context,
   s.instances = static_cast<int>(s.character_of.size());
   s.vertices = static_cast<int>(vertices);
   s.joints = static_cast<int>(joints);
-  s.tracking_mesh = std::make_unique<const TrackingMesh>(
-      concatenateTrackingMeshes(tracking_parts));
-  s.skinning = std::make_unique<ClSkinning>(
-      s.context, concatenatedMesh(skinning_parts),
-      concatenatedWeights(skinning_parts), s.joints);
-  s.field_evaluation = std::make_unique<ClFieldEvaluation>(
-      s.context, field_groups, options.storage);
-  s.tracking = std::make_unique<ClSurfaceTracking>(
-      *s.field_evaluation, *s.tracking_mesh, options.tracking);
+  TrackingMesh tracking_mesh = concatenateTrackingMeshes(tracking_parts);
+  s.pipeline = std::make_unique<detail::DeviceFramePipeline>(
+      std::move(context), concatenatedMesh(skinning_parts),
+      concatenatedWeights(skinning_parts), s.joints, field_groups,
+      std::move(tracking_mesh), options);
 }
 
 ImplicitCrowd::~ImplicitCrowd() = default;
@@ -343,7 +332,7 @@ ImplicitCrowd::State& ImplicitCrowd::state(const char* what,
   if (!state_)
     invalid(std::string("ImplicitCrowd::") + what +
             ": the crowd was moved from (it holds no rig)");
-  if (needs_run && !state_->has_run)
+  if (needs_run && !state_->pipeline->has_run)
     invalid(std::string("ImplicitCrowd::") + what +
             " before run(): there is no frame yet");
   return *state_;
@@ -374,56 +363,40 @@ void ImplicitCrowd::run(const std::vector<TransformList>& skinning) {
       }
     s.staging.insert(s.staging.end(), pose.begin(), pose.end());
   }
-  s.times = {};
-  s.skinning->enqueue(s.options.base_skinning, s.staging,
-                      /*recompute_normals=*/false);
-  s.tracking->run(s.staging, s.skinning->positionsBuffer(),
-                  s.skinning->normalsBuffer());
-  s.skinning->collectTimes();
-  s.times.upload_ms =
-      s.skinning->lastTimes().upload_ms + s.field_evaluation->lastUploadMs();
-  s.times.skinning_ms = s.skinning->lastTimes().skinning_ms;
-  s.times.tracking = s.tracking->lastTimes();
-  s.has_run = true;
+  s.pipeline->run(s.staging);
 }
 
 void ImplicitCrowd::readPositions(Matrix3Xf& out) {
-  State& s = state("readPositions", true);
-  const auto start = std::chrono::steady_clock::now();
-  s.tracking->readPositions(out);
-  s.times.readback_ms += millisecondsSince(start);
+  state("readPositions", true).pipeline->readPositions(out);
 }
 
 void ImplicitCrowd::readNormals(Matrix3Xf& out) {
-  State& s = state("readNormals", true);
-  const auto start = std::chrono::steady_clock::now();
-  s.tracking->readNormals(out);
-  s.times.readback_ms += millisecondsSince(start);
+  state("readNormals", true).pipeline->readNormals(out);
 }
 
 const cl::Buffer& ImplicitCrowd::positionsBuffer() const {
-  return state("positionsBuffer", false).tracking->positionsBuffer();
+  return state("positionsBuffer", false).pipeline->tracking->positionsBuffer();
 }
 const cl::Buffer& ImplicitCrowd::normalsBuffer() const {
-  return state("normalsBuffer", false).tracking->normalsBuffer();
+  return state("normalsBuffer", false).pipeline->tracking->normalsBuffer();
 }
 int ImplicitCrowd::contactCount() {
-  return state("contactCount", true).tracking->contactCount();
+  return state("contactCount", true).pipeline->tracking->contactCount();
 }
 const ImplicitStageTimes& ImplicitCrowd::lastTimes() const {
-  return state("lastTimes", false).times;
+  return state("lastTimes", false).pipeline->times;
 }
 const TrackingMesh& ImplicitCrowd::trackingMesh() const {
-  return *state("trackingMesh", false).tracking_mesh;
+  return *state("trackingMesh", false).pipeline->tracking_mesh;
 }
 ClSurfaceTracking& ImplicitCrowd::tracking() {
-  return *state("tracking", false).tracking;
+  return *state("tracking", false).pipeline->tracking;
 }
 ClFieldEvaluation& ImplicitCrowd::fieldEvaluation() {
-  return *state("fieldEvaluation", false).field_evaluation;
+  return *state("fieldEvaluation", false).pipeline->field_evaluation;
 }
 const ImplicitSkinnerOptions& ImplicitCrowd::options() const {
-  return state("options", false).options;
+  return state("options", false).pipeline->options;
 }
 int ImplicitCrowd::instanceCount() const {
   return state("instanceCount", false).instances;

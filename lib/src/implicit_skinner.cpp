@@ -3,9 +3,10 @@
 #include <chrono>
 #include <string>
 
+#include "frame_pipeline.hpp"
 #include "isk/core/error.hpp"
-#include "skinner_fields.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "skinner_fields.hpp"
 
 namespace isk {
 
@@ -38,76 +39,79 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
                                  const Rig& rig,
                                  std::shared_ptr<const ImplicitFields> fields,
                                  const ImplicitSkinnerOptions& options)
-    : context_(std::move(context)),
-      options_(options),
-      fields_(checkedFields(rig, std::move(fields))) {
-  if (!context_)
+    : options_(options), fields_(checkedFields(rig, std::move(fields))) {
+  if (!context)
     throw Error(ErrorCode::kInvalidArgument, "ImplicitSkinner: no context");
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
   rig.validate().throwIfFailed(rig.source);
-  tracking_mesh_ = std::make_unique<const TrackingMesh>(
-      TrackingMesh::build(rig.mesh, *fields_));
   const int joints = rig.skeleton.jointCount();
-  skinning_ =
-      std::make_unique<ClSkinning>(context_, rig.mesh, rig.weights, joints);
-  field_evaluation_ = std::make_unique<ClFieldEvaluation>(
-      context_, fields_->grids, joints, options.storage, &fields_->composition);
-  tracking_ = std::make_unique<ClSurfaceTracking>(
-      *field_evaluation_, *tracking_mesh_, options.tracking);
+  pipeline_ = std::make_unique<detail::DeviceFramePipeline>(
+      std::move(context), rig.mesh, rig.weights, joints,
+      std::vector<ClFieldEvaluation::FieldGroup>{
+          {&fields_->grids, joints, &fields_->composition, 1}},
+      TrackingMesh::build(rig.mesh, *fields_), options);
 }
 
-void ImplicitSkinner::checkUsable(const char* what, bool needs_run) const {
-  if (!tracking_)
+ImplicitSkinner::~ImplicitSkinner() = default;
+ImplicitSkinner::ImplicitSkinner(ImplicitSkinner&&) noexcept = default;
+ImplicitSkinner& ImplicitSkinner::operator=(ImplicitSkinner&&) noexcept =
+    default;
+
+detail::DeviceFramePipeline& ImplicitSkinner::usable(const char* what,
+                                                     bool needs_run) const {
+  if (!pipeline_)
     throw Error(ErrorCode::kInvalidArgument,
                 std::string("ImplicitSkinner::") + what +
                     ": the skinner was moved from (it holds no rig)");
-  if (needs_run && !has_run_)
+  if (needs_run && !pipeline_->has_run)
     throw Error(ErrorCode::kInvalidArgument,
                 std::string("ImplicitSkinner::") + what +
                     " before run(): there is no frame yet");
+  return *pipeline_;
 }
 
 void ImplicitSkinner::run(const TransformList& skinning) {
-  checkUsable("run", false);
-  times_ = {};
-  // Tracking is enqueued behind the skinning without a wait between them.
-  skinning_->enqueue(options_.base_skinning, skinning,
-                     /*recompute_normals=*/false);
-  tracking_->run(skinning, skinning_->positionsBuffer(),
-                 skinning_->normalsBuffer());
-  skinning_->collectTimes();
-  times_.upload_ms =
-      skinning_->lastTimes().upload_ms + field_evaluation_->lastUploadMs();
-  times_.skinning_ms = skinning_->lastTimes().skinning_ms;
-  times_.tracking = tracking_->lastTimes();
-  has_run_ = true;
+  usable("run", false).run(skinning);
 }
-
 void ImplicitSkinner::readPositions(Matrix3Xf& out) {
-  checkUsable("readPositions", true);
-  const auto start = std::chrono::steady_clock::now();
-  tracking_->readPositions(out);
-  times_.readback_ms += millisecondsSince(start);
+  usable("readPositions", true).readPositions(out);
 }
-
 void ImplicitSkinner::readNormals(Matrix3Xf& out) {
-  checkUsable("readNormals", true);
-  const auto start = std::chrono::steady_clock::now();
-  tracking_->readNormals(out);
-  times_.readback_ms += millisecondsSince(start);
+  usable("readNormals", true).readNormals(out);
 }
-
 const cl::Buffer& ImplicitSkinner::positionsBuffer() const {
-  checkUsable("positionsBuffer", false);
-  return tracking_->positionsBuffer();
+  return usable("positionsBuffer", false).tracking->positionsBuffer();
 }
 const cl::Buffer& ImplicitSkinner::normalsBuffer() const {
-  checkUsable("normalsBuffer", false);
-  return tracking_->normalsBuffer();
+  return usable("normalsBuffer", false).tracking->normalsBuffer();
 }
 int ImplicitSkinner::contactCount() {
-  checkUsable("contactCount", true);
-  return tracking_->contactCount();
+  return usable("contactCount", true).tracking->contactCount();
+}
+const ImplicitStageTimes& ImplicitSkinner::lastTimes() const {
+  return pipeline_ ? pipeline_->times : no_times_;
+}
+const ImplicitFields& ImplicitSkinner::fields() const {
+  usable("fields", false);
+  return *fields_;
+}
+const TrackingMesh& ImplicitSkinner::trackingMesh() const {
+  return *usable("trackingMesh", false).tracking_mesh;
+}
+ClSkinning& ImplicitSkinner::skinning() {
+  return *usable("skinning", false).skinning;
+}
+ClFieldEvaluation& ImplicitSkinner::fieldEvaluation() {
+  return *usable("fieldEvaluation", false).field_evaluation;
+}
+ClSurfaceTracking& ImplicitSkinner::tracking() {
+  return *usable("tracking", false).tracking;
+}
+ClContext& ImplicitSkinner::context() {
+  return *usable("context", false).context;
+}
+int ImplicitSkinner::vertexCount() const {
+  return usable("vertexCount", false).tracking_mesh->vertexCount();
 }
 
 CpuImplicitSkinner::CpuImplicitSkinner(const Rig& rig,

@@ -1,4 +1,4 @@
-// Baked implicit fields on the OpenCL device (kernels/fields.cl) against the
+// Baked implicit fields on the OpenCL device (kernels/fields/) against the
 // CPU reference FieldEvaluationJob, through both storages (image atlas and
 // buffer), on the procedural rigs and every shared asset, at the bind pose
 // and at a frame of the rig's first clip; points are the skinned vertices
@@ -531,7 +531,8 @@ TEST(ClFieldEvaluation, OtherKernelsCanBindTheFieldData) {
     ClFieldEvaluation device(context, fieldsOf("cylinder"),
                              rig.skeleton.jointCount(), storage);
     const int programs = context->cachedProgramCount();
-    cl::Program program = context->program("fields", device.buildOptions());
+    cl::Program program =
+        context->program("fields/evaluate", device.buildOptions());
     EXPECT_EQ(context->cachedProgramCount(), programs);
     cl::Kernel kernel(program, "evaluate_fields");
     EXPECT_NO_THROW(device.setFieldArgs(kernel, 2));

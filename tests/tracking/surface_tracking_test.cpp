@@ -17,15 +17,16 @@
 #include <random>
 #include <string>
 
-#include "isk/fields/composition_operator.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/core/error.hpp"
+#include "isk/fields/composition_operator.hpp"
 #include "isk/implicit_skinner.hpp"
-#include "isk/tools/mesh_metrics.hpp"
 #include "isk/rig/pose.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/tools/mesh_metrics.hpp"
 #include "isk/tools/procedural.hpp"
 #include "isk/tools/self_intersection.hpp"
 #include "test_support.hpp"
+#include "tracking/tracking_tuning.hpp"
 
 namespace isk {
 namespace {
@@ -134,12 +135,15 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
   o.smoothing_radius = 2;
   EXPECT_NE(o.validate().reason().find("smoothing_radius"), std::string::npos);
   for (const int cells : {-1, 17}) {
-    o = {};
-    o.neighbourhood_cells = cells;
+    detail::TrackingTuning tuning;
+    tuning.neighbourhood_cells = cells;
+    o = detail::withTuning({}, tuning);
     EXPECT_NE(o.validate().reason().find("neighbourhood_cells"),
               std::string::npos);
   }
-  o.neighbourhood_cells = 16;
+  detail::TrackingTuning tuning;
+  tuning.neighbourhood_cells = 16;
+  o = detail::withTuning({}, tuning);
   EXPECT_TRUE(o.validate());
   // The paper's values are the defaults.
   o = {};
@@ -1144,14 +1148,15 @@ void checkSpeedSwitches(const Rig& rig,
   };
   auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
-    options.tracking = base;
-    options.tracking.field_neighbourhoods = on.neighbourhoods;
-    options.tracking.neighbourhood_cells = on.neighbourhood_cells;
-    options.tracking.march_order = on.march_order;
-    options.tracking.occupied_cells = on.cells;
-    options.tracking.value_bounds = on.bounds;
-    options.tracking.lane_tests = on.lanes;
-    options.tracking.active_vertices = on.active;
+    detail::TrackingTuning tuning;
+    tuning.field_neighbourhoods = on.neighbourhoods;
+    tuning.neighbourhood_cells = on.neighbourhood_cells;
+    tuning.march_order = on.march_order;
+    tuning.occupied_cells = on.cells;
+    tuning.value_bounds = on.bounds;
+    tuning.lane_tests = on.lanes;
+    tuning.active_vertices = on.active;
+    options.tracking = detail::withTuning(base, tuning);
     CpuImplicitSkinner cpu(rig, fields, options);
     cpu.run(pose);
     ImplicitSkinner device(test::sharedContext(), rig, fields, options);
@@ -1250,7 +1255,9 @@ TEST(ImplicitSkinner, ActiveVerticesChangeNoResultWithOtherSmoothingCounts) {
       options.tracking.smoothing_steps = n.smoothing_steps;
       options.tracking.crease_diffusion = n.crease_diffusion;
       options.tracking.crease_steps = n.crease_steps;
-      options.tracking.active_vertices = active;
+      detail::TrackingTuning tuning;
+      tuning.active_vertices = active;
+      options.tracking = detail::withTuning(options.tracking, tuning);
       ImplicitSkinner skinner(test::sharedContext(), c.rig, fields, options);
       skinner.run(pose);
       skinner.readPositions(positions);

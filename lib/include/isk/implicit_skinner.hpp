@@ -34,6 +34,10 @@
 
 namespace isk {
 
+namespace detail {
+struct DeviceFramePipeline;  // lib/src/frame_pipeline.hpp
+}  // namespace detail
+
 // How an implicit skinner is built and what each frame does.
 struct ImplicitSkinnerOptions {
   // Samples per bone, grid resolution and precision, operators per joint,
@@ -96,56 +100,36 @@ class ImplicitSkinner {
   int contactCount();
 
   // Stage times of the last run() (readback: of the last reads).
-  const ImplicitStageTimes& lastTimes() const { return times_; }
+  const ImplicitStageTimes& lastTimes() const;
   // What the skinner was built from, and its parts (for stage-by-stage use,
   // interop and tests). They throw isk::Error(kInvalidArgument) on a
   // moved-from skinner, as run() and the reads do (the reads also before
   // run()).
-  const ImplicitFields& fields() const {
-    checkUsable("fields", false);
-    return *fields_;
-  }
-  const TrackingMesh& trackingMesh() const {
-    checkUsable("trackingMesh", false);
-    return *tracking_mesh_;
-  }
-  ClSkinning& skinning() {
-    checkUsable("skinning", false);
-    return *skinning_;
-  }
-  ClFieldEvaluation& fieldEvaluation() {
-    checkUsable("fieldEvaluation", false);
-    return *field_evaluation_;
-  }
-  ClSurfaceTracking& tracking() {
-    checkUsable("tracking", false);
-    return *tracking_;
-  }
+  const ImplicitFields& fields() const;
+  const TrackingMesh& trackingMesh() const;
+  ClSkinning& skinning();
+  ClFieldEvaluation& fieldEvaluation();
+  ClSurfaceTracking& tracking();
   const ImplicitSkinnerOptions& options() const { return options_; }
-  ClContext& context() {
-    checkUsable("context", false);
-    return *context_;
-  }
-  int vertexCount() const {  // #V
-    checkUsable("vertexCount", false);
-    return tracking_mesh_->vertexCount();
-  }
+  ClContext& context();
+  int vertexCount() const;  // #V
+
+  ~ImplicitSkinner();
+  ImplicitSkinner(ImplicitSkinner&&) noexcept;
+  ImplicitSkinner& operator=(ImplicitSkinner&&) noexcept;
 
  private:
   // Throws isk::Error(kInvalidArgument) naming `what` on a moved-from
-  // skinner, or before the first run() when `needs_run`.
-  void checkUsable(const char* what, bool needs_run) const;
+  // skinner, or before the first run() when `needs_run`; returns the frame
+  // pipeline.
+  detail::DeviceFramePipeline& usable(const char* what, bool needs_run) const;
 
-  std::shared_ptr<ClContext> context_;
   ImplicitSkinnerOptions options_;
   std::shared_ptr<const ImplicitFields> fields_;
-  // Held by pointer: the tracking keeps a reference (moves stay valid).
-  std::unique_ptr<const TrackingMesh> tracking_mesh_;
-  std::unique_ptr<ClSkinning> skinning_;
-  std::unique_ptr<ClFieldEvaluation> field_evaluation_;
-  std::unique_ptr<ClSurfaceTracking> tracking_;
-  ImplicitStageTimes times_;
-  bool has_run_ = false;
+  // The device parts, shared with ImplicitCrowd (lib/src/frame_pipeline.hpp);
+  // held by pointer, so that moves keep the tracking's references valid.
+  std::unique_ptr<detail::DeviceFramePipeline> pipeline_;
+  ImplicitStageTimes no_times_;  // lastTimes() of a moved-from skinner
 };
 
 // The CPU reference of ImplicitSkinner (CpuSkinning + CpuSurfaceTracking):

@@ -10,8 +10,9 @@
 #include <string>
 
 #include "cl/abi_checks.hpp"
-#include "isk/core/stopwatch.hpp"
+#include "cl/field_groups.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/stopwatch.hpp"
 
 namespace isk {
 namespace {
@@ -22,9 +23,7 @@ size_t roundUp(size_t n, size_t multiple) {
   return (n + multiple - 1) / multiple * multiple;
 }
 
-[[noreturn]] void invalid(const std::string& message) {
-  throw Error(ErrorCode::kInvalidArgument, "ClFieldEvaluation: " + message);
-}
+using detail::invalid;
 
 // Blocking read of the first `rows` float4 rows of a device buffer.
 void readRows(const cl::CommandQueue& queue, const cl::Buffer& buffer,
@@ -36,77 +35,6 @@ void readRows(const cl::CommandQueue& queue, const cl::Buffer& buffer,
                             out.data());
   } catch (const cl::Error& e) {
     throwClError(e, call);
-  }
-}
-
-void validateFields(const FieldGridSet& fields, int joint_count) {
-  if (joint_count < 0) invalid("joint_count is " + std::to_string(joint_count));
-  const int n = fields.resolution;
-  if (n < 2)
-    invalid("the field set's resolution is " + std::to_string(n) +
-            ", a grid needs at least 2 nodes per axis");
-  const size_t nodes = 4 * static_cast<size_t>(n) * n * n;
-  for (size_t i = 0; i < fields.grids.size(); ++i) {
-    const FieldGrid& g = fields.grids[i];
-    const std::string field = "field " + std::to_string(i);
-    if (g.joint < 0 || g.joint >= joint_count)
-      invalid(field + " belongs to joint " + std::to_string(g.joint) +
-              " but the skeleton has " + std::to_string(joint_count) +
-              " joints");
-    if (g.resolution != n)
-      invalid(field + " has " + std::to_string(g.resolution) +
-              " nodes per axis but the set has " + std::to_string(n) +
-              " (every field of a set shares one resolution)");
-    if (g.nodes.size() != nodes)
-      invalid(field + " holds " + std::to_string(g.nodes.size()) + " floats, " +
-              std::to_string(nodes) + " expected (4 per node)");
-    if (!g.bone_to_model.matrix().allFinite())
-      invalid(field + " has a non-finite bone frame");
-    if (!g.box_min.allFinite() || !g.box_max.allFinite() ||
-        !(g.box_max.array() > g.box_min.array()).all())
-      invalid(field + " has an empty or non-finite support box");
-    for (size_t k = 0; k < g.nodes.size(); ++k)
-      if (!std::isfinite(g.nodes[k]))
-        invalid(field + " node " + std::to_string(k / 4) + " is not finite");
-    // Stored as halves, the nodes must be halves already, or the device
-    // would sample other values than the reference.
-    if (fields.precision == GridPrecision::kHalf)
-      for (size_t k = 0; k < g.nodes.size(); ++k)
-        if (static_cast<float>(Eigen::half(g.nodes[k])) != g.nodes[k])
-          invalid(field + " node " + std::to_string(k / 4) + " holds " +
-                  std::to_string(g.nodes[k]) +
-                  ", not a half-precision value, in a set marked kHalf "
-                  "(round it with roundGridsToHalf)");
-  }
-}
-
-void validateComposition(const Composition& composition, int field_count) {
-  for (const FieldPair& p : composition.pairs)
-    if (p.field_a < 0 || p.field_b < 0 || p.field_a >= field_count ||
-        p.field_b >= field_count)
-      invalid("the composition's pair at joint " + std::to_string(p.joint) +
-              " pairs fields " + std::to_string(p.field_a) + " and " +
-              std::to_string(p.field_b) + " but the set has " +
-              std::to_string(field_count) + " (built for other fields?)");
-  const int n = composition.table_resolution;
-  for (size_t t = 0; t < composition.tables.size(); ++t) {
-    const auto& table = composition.tables[t];
-    if (!table || table->resolution != n ||
-        table->nodes.size() != 4 * static_cast<size_t>(n) * n * n)
-      invalid("operator table " + std::to_string(t) + " is missing or not " +
-              std::to_string(n) + "^3 float4");
-  }
-  for (int k : composition.blended_pairs) {
-    const FieldPair& p = composition.pairs.at(k);
-    if (p.table < 0 || p.table >= static_cast<int>(composition.tables.size()))
-      invalid("the pair at joint " + std::to_string(p.joint) +
-              " has no operator table");
-    if (p.controller < 0 ||
-        p.controller >= static_cast<int>(composition.controllers.size()) ||
-        composition.controllers[p.controller].theta.size() !=
-            static_cast<size_t>(kControllerSamples))
-      invalid("the pair at joint " + std::to_string(p.joint) + " has no " +
-              std::to_string(kControllerSamples) + "-sample controller");
   }
 }
 
@@ -148,144 +76,22 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
                                      FieldStorage storage)
     : context_(std::move(context)) {
   if (!context_) invalid("no context");
-  if (groups.empty()) invalid("no field groups");
-  // A message about group g: "character g: " first when there are several.
-  auto where = [&](size_t g) {
-    return groups.size() > 1 ? "character " + std::to_string(g) + ": "
-                             : std::string();
-  };
+  const detail::FieldGroupTotals totals = detail::checkFieldGroups(groups);
   const FieldGridSet* first = groups[0].fields;
-  long long fields_total = 0, joints_total = 0, grids_total = 0;
-  int table_resolution = 0;
-  for (size_t g = 0; g < groups.size(); ++g) {
-    const FieldGroup& group = groups[g];
-    if (!group.fields) invalid(where(g) + "no field set");
-    if (group.instances < 1)
-      invalid(where(g) + std::to_string(group.instances) +
-              " instances, expected at least 1");
-    const int count = group.fields->fieldCount();
-    if (static_cast<long long>(count) * group.instances > (1 << 24) ||
-        static_cast<long long>(std::max(group.joint_count, 1)) *
-                group.instances >
-            std::numeric_limits<int>::max())
-      invalid(where(g) + std::to_string(group.instances) + " instances of " +
-              std::to_string(count) + " fields and " +
-              std::to_string(group.joint_count) + " joints are too many");
-    try {
-      validateFields(*group.fields, group.joint_count);
-      if (group.composition) validateComposition(*group.composition, count);
-    } catch (const Error& e) {
-      if (groups.size() == 1) throw;
-      // invalid()'s prefix, then which character.
-      const std::string prefix = "ClFieldEvaluation: ";
-      std::string message = e.what();
-      if (message.rfind(prefix, 0) == 0) message.erase(0, prefix.size());
-      invalid(where(g) + message);
-    }
-    // One resolution and precision for every grid (the kernels' arguments),
-    // one for every operator table.
-    if (group.fields->resolution != first->resolution)
-      invalid(where(g) + "its grids have " +
-              std::to_string(group.fields->resolution) +
-              " nodes per axis, character 0's " +
-              std::to_string(first->resolution) +
-              " (a crowd shares one grid resolution)");
-    if (group.fields->precision != first->precision)
-      invalid(where(g) +
-              "its grids' precision differs from character 0's "
-              "(a crowd shares one grid precision)");
-    if (group.composition && !group.composition->tables.empty()) {
-      if (table_resolution == 0)
-        table_resolution = group.composition->table_resolution;
-      else if (group.composition->table_resolution != table_resolution)
-        invalid(where(g) + "its operator tables have " +
-                std::to_string(group.composition->table_resolution) +
-                " nodes per axis, another character's " +
-                std::to_string(table_resolution) +
-                " (a crowd shares one table resolution)");
-    }
-    grids_total += count;
-    fields_total += static_cast<long long>(count) * group.instances;
-    joints_total += static_cast<long long>(group.joint_count) * group.instances;
-  }
-  if (fields_total > (1 << 24) ||
-      joints_total > std::numeric_limits<int>::max())
-    invalid(std::to_string(fields_total) + " fields and " +
-            std::to_string(joints_total) + " joints in all are too many");
   resolution_ = first->resolution;
-  grid_count_ = static_cast<int>(grids_total);
-  field_count_ = static_cast<int>(fields_total);
-  joint_count_ = static_cast<int>(joints_total);
+  grid_count_ = totals.grids;
+  field_count_ = totals.fields;
+  joint_count_ = totals.joints;
   layout_.resolution = first->resolution;
   layout_.precision = first->precision;
-
-  // Every group's instances one after the other: instance k of group g
-  // follows joint joint_offset + k * joint_count + j, its field i samples
-  // grid grid_offset + i, its pairs use the group's tables and controllers.
-  std::vector<const FieldGrid*> stored;  // the grids, each once
-  std::vector<int> grid_of_field;
-  Composition merged;  // every group's controllers and tables
-  bool any_composition = false;
-  int joint_offset = 0, field_offset = 0;
-  layout_.grids.reserve(static_cast<size_t>(field_count_));
-  for (const FieldGroup& group : groups) {
-    const FieldGridSet& fields = *group.fields;
-    const int grid_offset = static_cast<int>(stored.size());
-    for (const FieldGrid& g : fields.grids) stored.push_back(&g);
-    const Composition* composition = group.composition;
-    const int controller_offset = static_cast<int>(merged.controllers.size());
-    // The group's table t is merged table table_index[t]: a table shared by
-    // several characters (sharedOperatorTable bakes each kind once) is
-    // stored once.
-    std::vector<int> table_index;
-    if (composition) {
-      any_composition = true;
-      for (const auto& table : composition->tables) {
-        const auto same =
-            std::find(merged.tables.begin(), merged.tables.end(), table);
-        table_index.push_back(static_cast<int>(same - merged.tables.begin()));
-        if (same == merged.tables.end()) merged.tables.push_back(table);
-      }
-      merged.controllers.insert(merged.controllers.end(),
-                                composition->controllers.begin(),
-                                composition->controllers.end());
-    }
-    const int count = fields.fieldCount();
-    for (int k = 0; k < group.instances; ++k) {
-      for (const int f : fields.field_of_joint)
-        layout_.field_of_joint.push_back(f < 0 ? f : f + field_offset);
-      for (int i = 0; i < count; ++i) {
-        const FieldGrid& g = fields.grids[i];
-        FieldGrid meta;
-        meta.joint = g.joint + joint_offset;
-        meta.resolution = g.resolution;
-        meta.bone_to_model = g.bone_to_model;
-        meta.box_min = g.box_min;
-        meta.box_max = g.box_max;
-        layout_.grids.push_back(std::move(meta));
-        grid_of_field.push_back(grid_offset + i);
-      }
-      if (composition) {
-        const int pair_offset =
-            static_cast<int>(composition_layout_.pairs.size());
-        for (FieldPair p : composition->pairs) {
-          p.joint += joint_offset;
-          p.field_a += field_offset;
-          p.field_b += field_offset;
-          if (p.table >= 0) p.table = table_index[p.table];
-          if (p.controller >= 0) p.controller += controller_offset;
-          composition_layout_.pairs.push_back(p);
-        }
-        for (const int b : composition->blended_pairs)
-          composition_layout_.blended_pairs.push_back(b + pair_offset);
-      }
-      joint_offset += group.joint_count;
-      field_offset += count;
-    }
-  }
+  detail::MergedFieldGroups merged =
+      detail::mergeFieldGroups(groups, field_count_);
+  layout_.grids = std::move(merged.layout.grids);
+  layout_.field_of_joint = std::move(merged.layout.field_of_joint);
+  composition_layout_ = std::move(merged.composition_layout);
   pair_count_ = static_cast<int>(composition_layout_.blended_pairs.size());
-  table_count_ = static_cast<int>(merged.tables.size());
-  table_resolution_ = table_count_ > 0 ? table_resolution : 2;
+  table_count_ = static_cast<int>(merged.merged.tables.size());
+  table_resolution_ = table_count_ > 0 ? totals.table_resolution : 2;
 
   chooseStorage(storage, *first);
   half_ = first->precision == GridPrecision::kHalf &&
@@ -303,42 +109,31 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
 
   {
     std::vector<Eigen::AlignedBox3f> stored_boxes;
-    for (const FieldGrid* g : stored) stored_boxes.push_back(occupiedBox(*g));
-    for (const int i : grid_of_field)
+    for (const FieldGrid* g : merged.stored)
+      stored_boxes.push_back(occupiedBox(*g));
+    for (const int i : merged.grid_of_field)
       occupied_boxes_.push_back(stored_boxes[i]);
   }
 
   // Static parameters; the rows of the transforms come with each pose.
-  params_staging_.assign(
-      static_cast<size_t>(std::max(field_count_, 1)) * kParamStride * 4, 0.f);
-  for (int f = 0; f < field_count_; ++f) {
-    const int i = grid_of_field[f];  // the grid it samples
-    const FieldGrid& g = *stored[i];
-    float* p = &params_staging_[static_cast<size_t>(f) * kParamStride * 4];
-    const Eigen::Vector3f spacing = g.spacing();
-    for (int a = 0; a < 3; ++a) {
-      p[12 + a] = g.box_min[a];
-      p[16 + a] = 1.f / spacing[a];
-    }
-    p[15] = static_cast<float>(i);  // exact: at most 2^24 grids
-    p[19] = static_cast<float>(resolution_ - 1);
-    const int tile[3] = {i % tiles_[0], (i / tiles_[0]) % tiles_[1],
-                         i / (tiles_[0] * tiles_[1])};
-    for (int a = 0; a < 3; ++a)
-      p[20 + a] = storage_ == FieldStorage::kImage
-                      ? static_cast<float>(tile[a] * resolution_) + 0.5f
-                      : 0.f;
-  }
+  params_staging_ = detail::staticFieldParams(
+      merged.stored, merged.grid_of_field, resolution_, tiles_.data(),
+      storage_ == FieldStorage::kImage);
 
+  uploadFields(merged);
+}
+
+void ClFieldEvaluation::uploadFields(const detail::MergedFieldGroups& merged) {
+  const std::vector<const FieldGrid*>& stored = merged.stored;
   const cl::Context& ctx = context_->context();
   try {
-    cl::Program program = context_->program("fields", buildOptions());
+    cl::Program program = context_->program("fields/evaluate", buildOptions());
     kernel_ = cl::Kernel(program, "evaluate_fields");
     if (storage_ == FieldStorage::kImage)
       uploadImage(stored);
     else
       uploadBuffer(stored);
-    uploadComposition(any_composition ? &merged : nullptr);
+    uploadComposition(merged.any_composition ? &merged.merged : nullptr);
     // Every grid's cellValueBounds, one after the other.
     std::vector<uint8_t> cells;
     for (const FieldGrid* g : stored) {

@@ -8,13 +8,15 @@
 #include <type_traits>
 
 #include "cl/abi_checks.hpp"
-#include "isk/core/stopwatch.hpp"
+#include "cl/tracking_layout.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/stopwatch.hpp"
+#include "tracking/tracking_tuning.hpp"
 
 namespace isk {
 namespace {
 
-// The lane tests' chunks (tracking.cl, ISK_LANE_TESTS): ISK_LANE_WIDTH
+// The lane tests' chunks (tracking/project.cl, ISK_LANE_TESTS): ISK_LANE_WIDTH
 // lanes (one mask byte per chunk and cell), ISK_LANE_ROWS rows of as many
 // floats.
 constexpr int kLaneWidth = ISK_LANE_WIDTH;
@@ -59,199 +61,131 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
     throw Error(ErrorCode::kInvalidArgument,
                 "ClSurfaceTracking: the tracking mesh is inconsistent (built "
                 "by TrackingMesh::build?)");
-  const size_t n = static_cast<size_t>(std::max(vertex_count_, 1));
-  // The neighbourhoods split into cells (splitNeighbourhoodsIntoCells) on a
-  // CPU device, for a character with 100 tracked vertices per field or
-  // more (docs/performance.md): the split's host time and upload grow with
-  // the fields, its gain with the vertices, so below that it costs more
-  // than it saves. Elsewhere one cell per box, the whole
-  // neighbourhood: a GPU's frame is bound by launches, and the split's
-  // host time and upload are unmeasured there.
-  const bool many_vertices =
-      mesh.march_order.size() >=
-      100 * static_cast<size_t>(std::max(mesh.field_count, 1));
-  cells_per_axis_ =
-      options.neighbourhood_cells > 0            ? options.neighbourhood_cells
-      : context_->info().is_cpu && many_vertices ? kCpuCellsPerAxis
-                                                 : 1;
-  lane_tests_ = options.lane_tests && context_->info().is_cpu &&
-                options.field_neighbourhoods;
+  cells_per_axis_ = detail::neighbourhoodCellsPerAxis(
+      mesh, options, context_->info().is_cpu, kCpuCellsPerAxis);
+  const detail::TrackingTuning& tuning = detail::tuningOf(options);
+  lane_tests_ = tuning.lane_tests && context_->info().is_cpu &&
+                tuning.field_neighbourhoods;
   try {
-    cl::Program tracking = context_->program(
-        "tracking", fields.buildOptions() + " -DISK_NEIGHBOUR_CELLS=" +
-                        std::to_string(cells_per_axis_) +
-                        (lane_tests_ ? " -DISK_LANE_TESTS=1" : ""));
-    begin_ = cl::Kernel(tracking, "track_begin");
-    project_ = cl::Kernel(tracking, "track_project");
-    relax_ = cl::Kernel(tracking, "track_relax");
-    beta_init_ = cl::Kernel(tracking, "track_beta_init");
-    beta_diffuse_ = cl::Kernel(tracking, "track_beta_diffuse");
-    smooth_ = cl::Kernel(tracking, "track_smooth");
-    copy_duplicates_ = cl::Kernel(tracking, "track_copy_duplicates");
-    triangle_normals_kernel_ =
-        cl::Kernel(context_->program("normals"), "triangle_normals");
-    normals_kernel_ =
-        cl::Kernel(context_->program("normals"), "vertex_normals");
-
-    // The device keeps the vertices in their march order (the tracked
-    // vertices first, then the others by index): the projection reads and
-    // writes its per-vertex data in sequence, and march slot k is vertex k
-    // on the device. begin() gathers the skinned positions into that order
-    // and finish() scatters the results back.
-    order_ = mesh.march_order;
-    if (!options.march_order) std::sort(order_.begin(), order_.end());
-    march_count_ = static_cast<int>(order_.size());
-    std::vector<int> slot_of(vertex_count_, -1);  // inverse of order_
-    for (int k = 0; k < march_count_; ++k) slot_of[order_[k]] = k;
-    for (int v = 0; v < vertex_count_; ++v)
-      if (slot_of[v] < 0) {
-        slot_of[v] = static_cast<int>(order_.size());
-        order_.push_back(v);
-      }
-    auto permuted = [&](const auto& by_vertex) {
-      std::remove_const_t<std::remove_reference_t<decltype(by_vertex)>> out(
-          by_vertex.size());
-      for (size_t k = 0; k < order_.size(); ++k) out[k] = by_vertex[order_[k]];
-      return out;
-    };
-    iso_values_ = uploadReadOnly(*context_, permuted(mesh.iso_values), &bytes_);
-    std::vector<int> representative(vertex_count_),
-        finish_source(vertex_count_);
-    for (int k = 0; k < vertex_count_; ++k)
-      representative[k] = slot_of[mesh.rings.representative[order_[k]]];
-    for (int v = 0; v < vertex_count_; ++v)
-      finish_source[v] = slot_of[mesh.rings.representative[v]];
-    representative_ = uploadReadOnly(*context_, representative, &bytes_);
-    finish_source_ = uploadReadOnly(*context_, finish_source, &bytes_);
-    begin_source_ = uploadReadOnly(*context_, order_, &bytes_);
-    std::vector<uint8_t> rules(mesh.relaxation.rules.size());
-    for (size_t k = 0; k < rules.size(); ++k)
-      rules[k] = static_cast<uint8_t>(mesh.relaxation.rules[order_[k]]);
-    rules_ = uploadReadOnly(*context_, rules, &bytes_);
-    home_fields_ =
-        uploadReadOnly(*context_, permuted(mesh.home_field), &bytes_);
-    home_margins_ =
-        uploadReadOnly(*context_, permuted(mesh.home_margin), &bytes_);
-    const TrackingLengths lengths = trackingLengths(mesh, options);
-    std::vector<cl_float2> step_limits(vertex_count_);
-    std::vector<float> radii(vertex_count_);
-    for (int k = 0; k < vertex_count_; ++k) {
-      step_limits[k] = {
-          {lengths.max_step[order_[k]], lengths.min_gradient[order_[k]]}};
-      radii[k] = lengths.smoothing_radius[order_[k]];
-    }
-    step_limits_ = uploadReadOnly(*context_, step_limits, &bytes_);
-    const size_t fields = static_cast<size_t>(mesh.field_count);
-    auto int_buffer = [&](size_t count) {
-      bytes_ += std::max<size_t>(count, 1) * sizeof(int);
-      return context_->createBuffer(
-          CL_MEM_READ_ONLY, std::max<size_t>(count, 1) * sizeof(int), nullptr,
-          "ClSurfaceTracking: field neighbourhoods of " +
-              std::to_string(fields) + " fields");
-    };
-    partners_ = int_buffer(fields * TrackingMesh::kMaxPartners);
-    // Worst cases: every pair in every neighbourhood. The cell lists'
-    // entries grow with the poses (begin()).
-    const size_t cells = static_cast<size_t>(cells_per_axis_);
-    neighbour_offsets_ = int_buffer(fields * cells * cells * cells + 1);
-    neighbour_entry_capacity_ = std::max<size_t>(fields * fields, 1);
-    neighbour_entries_ = int_buffer(neighbour_entry_capacity_);
-    neighbour_pair_offsets_ = int_buffer(fields + 1);
-    // The lane tests' chunks come with the first pose (buildLanes); until
-    // then, and without lane tests, placeholders for the kernel arguments.
-    lane_offsets_ = int_buffer(fields + 1);
-    lane_params_ = int_buffer(1);
-    lane_masks_ = int_buffer(1);
-    neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
-    if (!options.occupied_cells) {  // no cell clear, no bound: no skipping
-      const size_t cells =
-          static_cast<size_t>(fields_->layout().resolution) - 1;
-      const std::vector<uint8_t> every(
-          std::max<size_t>(fields_->gridCount(), 1) * cells * cells * cells,
-          255);
-      every_cell_ = uploadReadOnly(*context_, every, &bytes_);
-    }
-    {  // the one-rings in device order, neighbours as device indices
-      std::vector<uint32_t> offsets(1, 0);
-      std::vector<int> neighbours;
-      std::vector<float> weights, lengths;  // lengths: rest, for the filter
-      neighbours.reserve(mesh.rings.neighbours.size());
-      for (int k = 0; k < vertex_count_; ++k) {
-        const int v = order_[k];
-        for (uint32_t i = mesh.rings.offsets[v]; i < mesh.rings.offsets[v + 1];
-             ++i) {
-          neighbours.push_back(slot_of[mesh.rings.neighbours[i]]);
-          weights.push_back(mesh.relaxation.weights[i]);
-          lengths.push_back(mesh.ring_lengths[i]);
-        }
-        offsets.push_back(static_cast<uint32_t>(neighbours.size()));
-      }
-      ring_offsets_ = uploadReadOnly(*context_, offsets, &bytes_);
-      ring_neighbours_ = uploadReadOnly(*context_, neighbours, &bytes_);
-      ring_weights_ = uploadReadOnly(*context_, weights, &bytes_);
-      // The neighbours within each vertex's smoothing radius (rest
-      // distance), in ring order: the rows the diffusion and the Laplacian
-      // steps average over, filtered once here instead of at every step.
-      std::vector<uint32_t> near_offsets(1, 0);
-      std::vector<int> near;
-      near.reserve(neighbours.size());
-      for (int k = 0; k < vertex_count_; ++k) {
-        for (uint32_t i = offsets[k]; i < offsets[k + 1]; ++i)
-          if (lengths[i] <= radii[k]) near.push_back(neighbours[i]);
-        near_offsets.push_back(static_cast<uint32_t>(near.size()));
-      }
-      near_offsets_ = uploadReadOnly(*context_, near_offsets, &bytes_);
-      near_neighbours_ = uploadReadOnly(*context_, near, &bytes_);
-      // Their transpose: the vertices whose rows list each vertex, where
-      // a contact or crease vertex pushes its reach (active vertices).
-      std::vector<uint32_t> reverse_offsets(vertex_count_ + 1, 0);
-      for (int w : near) ++reverse_offsets[w + 1];
-      for (int k = 0; k < vertex_count_; ++k)
-        reverse_offsets[k + 1] += reverse_offsets[k];
-      std::vector<int> reverse(near.size());
-      std::vector<uint32_t> fill(reverse_offsets.begin(),
-                                 reverse_offsets.end() - 1);
-      for (int k = 0; k < vertex_count_; ++k)
-        for (uint32_t i = near_offsets[k]; i < near_offsets[k + 1]; ++i)
-          reverse[fill[near[i]]++] = k;
-      reverse_offsets_ = uploadReadOnly(*context_, reverse_offsets, &bytes_);
-      reverse_neighbours_ = uploadReadOnly(*context_, reverse, &bytes_);
-    }
-    normal_offsets_ =
-        uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
-    normal_triangles_ =
-        uploadReadOnly(*context_, mesh.normal_adjacency.triangles, &bytes_);
-    triangle_count_ = static_cast<int>(mesh.triangles.rows());
-    triangles_ =
-        uploadReadOnly(*context_, mesh.triangles.data(),
-                       3 * static_cast<size_t>(triangle_count_), &bytes_);
-    const size_t floats3 = 3 * n * sizeof(float);
-    const std::string per_vertex = "ClSurfaceTracking: per-vertex state of " +
-                                   std::to_string(n) + " vertices";
-    auto rw = [&](size_t bytes) {
-      return context_->createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
-                                    per_vertex);
-    };
-    for (auto& b : positions_) b = rw(floats3);
-    normals_ = rw(floats3);
-    states_ = rw(n);
-    prev_gradients_ = rw(n * 4 * sizeof(float));
-    relax_frames_ = rw(n * 4 * sizeof(float));
-    for (auto& b : beta_) b = rw(2 * n * sizeof(float));
-    reach_ = rw(n);
-    const size_t triangle_floats3 =
-        3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
-    triangle_normals_ = rw(triangle_floats3);
-    std::vector<uint8_t> kinds(mesh.rings.kinds.size());
-    for (size_t k = 0; k < kinds.size(); ++k)
-      kinds[k] = static_cast<uint8_t>(mesh.rings.kinds[order_[k]]);
-    kinds_ = uploadReadOnly(*context_, kinds, &bytes_);
-    bytes_ += 3 * floats3 + 2 * n + 2 * n * 4 * sizeof(float) +
-              4 * n * sizeof(float) + triangle_floats3;
+    buildKernels(fields);
+    uploadLayout(detail::trackingDeviceLayout(mesh, options));
+    allocateBroadPhase(mesh);
+    allocateState(mesh);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking: uploading the tracking mesh to " +
                         context_->info().describe());
   }
+}
+
+void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
+  // The projection samples the fields: it is built with their storage
+  // options and the broad phase's; the other stages read positions and
+  // rings only.
+  cl::Program project = context_->program(
+      "tracking/project", fields.buildOptions() + " -DISK_NEIGHBOUR_CELLS=" +
+                              std::to_string(cells_per_axis_) +
+                              (lane_tests_ ? " -DISK_LANE_TESTS=1" : ""));
+  cl::Program relax = context_->program("tracking/relax");
+  cl::Program smooth = context_->program("tracking/smooth");
+  cl::Program finish = context_->program("tracking/finish");
+  begin_ = cl::Kernel(project, "track_begin");
+  project_ = cl::Kernel(project, "track_project");
+  relax_ = cl::Kernel(relax, "track_relax");
+  beta_init_ = cl::Kernel(smooth, "track_beta_init");
+  beta_diffuse_ = cl::Kernel(smooth, "track_beta_diffuse");
+  smooth_ = cl::Kernel(smooth, "track_smooth");
+  copy_duplicates_ = cl::Kernel(finish, "track_copy_duplicates");
+  triangle_normals_kernel_ =
+      cl::Kernel(context_->program("normals"), "triangle_normals");
+  normals_kernel_ = cl::Kernel(context_->program("normals"), "vertex_normals");
+}
+
+void ClSurfaceTracking::uploadLayout(
+    const detail::TrackingDeviceLayout& layout) {
+  order_ = layout.order;
+  march_count_ = layout.march_count;
+  iso_values_ = uploadReadOnly(*context_, layout.iso_values, &bytes_);
+  representative_ = uploadReadOnly(*context_, layout.representative, &bytes_);
+  finish_source_ = uploadReadOnly(*context_, layout.finish_source, &bytes_);
+  begin_source_ = uploadReadOnly(*context_, layout.order, &bytes_);
+  rules_ = uploadReadOnly(*context_, layout.rules, &bytes_);
+  kinds_ = uploadReadOnly(*context_, layout.kinds, &bytes_);
+  home_fields_ = uploadReadOnly(*context_, layout.home_fields, &bytes_);
+  home_margins_ = uploadReadOnly(*context_, layout.home_margins, &bytes_);
+  step_limits_ = uploadReadOnly(*context_, layout.step_limits, &bytes_);
+  ring_offsets_ = uploadReadOnly(*context_, layout.ring_offsets, &bytes_);
+  ring_neighbours_ = uploadReadOnly(*context_, layout.ring_neighbours, &bytes_);
+  ring_weights_ = uploadReadOnly(*context_, layout.ring_weights, &bytes_);
+  near_offsets_ = uploadReadOnly(*context_, layout.near_offsets, &bytes_);
+  near_neighbours_ = uploadReadOnly(*context_, layout.near_neighbours, &bytes_);
+  reverse_offsets_ = uploadReadOnly(*context_, layout.reverse_offsets, &bytes_);
+  reverse_neighbours_ =
+      uploadReadOnly(*context_, layout.reverse_neighbours, &bytes_);
+}
+
+void ClSurfaceTracking::allocateBroadPhase(const TrackingMesh& mesh) {
+  const size_t fields = static_cast<size_t>(mesh.field_count);
+  auto int_buffer = [&](size_t count) {
+    bytes_ += std::max<size_t>(count, 1) * sizeof(int);
+    return context_->createBuffer(
+        CL_MEM_READ_ONLY, std::max<size_t>(count, 1) * sizeof(int), nullptr,
+        "ClSurfaceTracking: field neighbourhoods of " + std::to_string(fields) +
+            " fields");
+  };
+  partners_ = int_buffer(fields * TrackingMesh::kMaxPartners);
+  // Worst cases: every pair in every neighbourhood. The cell lists'
+  // entries grow with the poses (begin()).
+  const size_t cells = static_cast<size_t>(cells_per_axis_);
+  neighbour_offsets_ = int_buffer(fields * cells * cells * cells + 1);
+  neighbour_entry_capacity_ = std::max<size_t>(fields * fields, 1);
+  neighbour_entries_ = int_buffer(neighbour_entry_capacity_);
+  neighbour_pair_offsets_ = int_buffer(fields + 1);
+  // The lane tests' chunks come with the first pose (buildLanes); until
+  // then, and without lane tests, placeholders for the kernel arguments.
+  lane_offsets_ = int_buffer(fields + 1);
+  lane_params_ = int_buffer(1);
+  lane_masks_ = int_buffer(1);
+  neighbour_pairs_ = int_buffer(fields * mesh.partner_pairs.size());
+  if (!detail::tuningOf(options_)
+           .occupied_cells) {  // no cell clear, no bound: no skipping
+    const size_t grid_cells =
+        static_cast<size_t>(fields_->layout().resolution) - 1;
+    const std::vector<uint8_t> every(std::max<size_t>(fields_->gridCount(), 1) *
+                                         grid_cells * grid_cells * grid_cells,
+                                     255);
+    every_cell_ = uploadReadOnly(*context_, every, &bytes_);
+  }
+}
+
+void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
+  const size_t n = static_cast<size_t>(std::max(vertex_count_, 1));
+  normal_offsets_ =
+      uploadReadOnly(*context_, mesh.normal_adjacency.offsets, &bytes_);
+  normal_triangles_ =
+      uploadReadOnly(*context_, mesh.normal_adjacency.triangles, &bytes_);
+  triangle_count_ = static_cast<int>(mesh.triangles.rows());
+  triangles_ =
+      uploadReadOnly(*context_, mesh.triangles.data(),
+                     3 * static_cast<size_t>(triangle_count_), &bytes_);
+  const size_t floats3 = 3 * n * sizeof(float);
+  const std::string per_vertex = "ClSurfaceTracking: per-vertex state of " +
+                                 std::to_string(n) + " vertices";
+  auto rw = [&](size_t bytes) {
+    return context_->createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
+                                  per_vertex);
+  };
+  for (auto& b : positions_) b = rw(floats3);
+  normals_ = rw(floats3);
+  states_ = rw(n);
+  prev_gradients_ = rw(n * 4 * sizeof(float));
+  relax_frames_ = rw(n * 4 * sizeof(float));
+  for (auto& b : beta_) b = rw(2 * n * sizeof(float));
+  reach_ = rw(n);
+  const size_t triangle_floats3 =
+      3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
+  triangle_normals_ = rw(triangle_floats3);
+  bytes_ += 3 * floats3 + 2 * n + 2 * n * 4 * sizeof(float) +
+            4 * n * sizeof(float) + triangle_floats3;
 }
 
 void ClSurfaceTracking::addTime(Stage stage, double ms) {
@@ -306,8 +240,10 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
   kernel.setArg(first_index + 7, options_.contact_gap);
   const cl_int flags =
       (options_.home_contact ? ISK_CONTACT_HOME_FIELD : 0) |
-      (options_.field_neighbourhoods ? ISK_CONTACT_NEIGHBOURHOODS : 0) |
-      (options_.value_bounds ? ISK_CONTACT_VALUE_BOUNDS : 0);
+      (detail::tuningOf(options_).field_neighbourhoods
+           ? ISK_CONTACT_NEIGHBOURHOODS
+           : 0) |
+      (detail::tuningOf(options_).value_bounds ? ISK_CONTACT_VALUE_BOUNDS : 0);
   kernel.setArg(first_index + 8, flags);
   kernel.setArg(first_index + 9, lane_offsets_);
   kernel.setArg(first_index + 10, lane_params_);
@@ -416,11 +352,12 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     partners_staging_ = activePartners(*mesh_, skinning);
     neighbourhoods_ = fieldNeighbourhoods(
         *mesh_, fields_->layout(), fields_->posedToBone(), partners_staging_);
-    if (options_.field_neighbourhoods && cells_per_axis_ == 1) {
+    if (detail::tuningOf(options_).field_neighbourhoods &&
+        cells_per_axis_ == 1) {
       neighbourhoods_.cells_per_axis = 1;  // a cell is the whole box
       neighbourhoods_.cell_offsets = neighbourhoods_.offsets;
       neighbourhoods_.cell_entries = neighbourhoods_.entries;
-    } else if (options_.field_neighbourhoods) {
+    } else if (detail::tuningOf(options_).field_neighbourhoods) {
       splitNeighbourhoodsIntoCells(neighbourhoods_, fields_->layout(),
                                    fields_->posedToBone(),
                                    fields_->occupiedBoxes(), cells_per_axis_);
@@ -497,7 +434,7 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(7, step_limits_);
     setContactArgs(project_, ISK_PROJECT_ARG_CONTACT);
     fields_->setFieldArgs(project_, ISK_PROJECT_ARG_FIELDS);
-    if (!options_.occupied_cells)
+    if (!detail::tuningOf(options_).occupied_cells)
       project_.setArg(ISK_PROJECT_ARG_FIELDS + ISK_FIELD_ARG_CELLS,
                       every_cell_);
     fields_->setCompositionArgs(project_, ISK_PROJECT_ARG_COMPOSITION);
@@ -522,7 +459,8 @@ void ClSurfaceTracking::relax() {
     relax_.setArg(6, ring_offsets_);
     relax_.setArg(7, ring_neighbours_);
     relax_.setArg(8, ring_weights_);
-    relax_.setArg(9, static_cast<cl_uint>(options_.active_vertices ? 1 : 0));
+    relax_.setArg(9, static_cast<cl_uint>(
+                         detail::tuningOf(options_).active_vertices ? 1 : 0));
     launch(relax_, kRelaxation);
     current_ = 1 - current_;
   } catch (const cl::Error& e) {
@@ -535,7 +473,7 @@ void ClSurfaceTracking::smooth() {
   checkBegun("smooth");
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
-    const cl_uint active = options_.active_vertices ? 1 : 0;
+    const cl_uint active = detail::tuningOf(options_).active_vertices ? 1 : 0;
     beta_init_.setArg(0, n);
     beta_init_.setArg(1, states_);
     beta_init_.setArg(2, beta_[0]);

@@ -1,5 +1,5 @@
 // Trilinear interpolation of a grid of float4 nodes, in the order of
-// operations the kernels' buffer paths use (kernels/fields.cl:
+// operations the kernels' buffer paths use (kernels/fields/sample.cl:
 // trilinear_nodes), so that a CPU device agrees to the last bits. Shared by
 // the baked fields (FieldGrid) and the operator tables (OperatorTable).
 #pragma once

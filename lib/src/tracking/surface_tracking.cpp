@@ -9,9 +9,10 @@
 #include <string>
 
 #include "abi.h"
-#include "isk/core/stopwatch.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/tools/mesh_metrics.hpp"
+#include "tracking/tracking_tuning.hpp"
 
 namespace isk {
 
@@ -21,7 +22,7 @@ namespace {
 // Rest normals closer than this share a smoothed normal across a seam.
 constexpr float kSameNormalCos = 0.99f;
 
-// The paper's steps, named as in the kernels (kernels/tracking.cl):
+// The paper's steps, named as in the kernels (kernels/tracking/):
 // newtonStep, contactStop, marchToContact, tangentialRelaxation,
 // smoothingStep. prev_gradients' w (ISK_GRADIENT_* of kernels/abi.h) says
 // what the vertex's last projection step was.
@@ -147,8 +148,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (crease_steps < 0 || crease_steps > 1000)
     return bad("crease_steps " + std::to_string(crease_steps) +
                ": expected 0..1000");
-  if (neighbourhood_cells < 0 || neighbourhood_cells > 16)
-    return bad("neighbourhood_cells " + std::to_string(neighbourhood_cells) +
+  const int cells = detail::tuningOf(*this).neighbourhood_cells;
+  if (cells < 0 || cells > 16)
+    return bad("neighbourhood_cells " + std::to_string(cells) +
                ": expected 0 (the device's choice) to 16");
   return Validation::ok();
 }
@@ -178,10 +180,11 @@ int TrackingMesh::trackedCount() const {
   return count;
 }
 
-TrackingMesh TrackingMesh::build(const Mesh& mesh,
-                                 const ImplicitFields& fields) {
-  const std::vector<float>& iso_values = fields.iso_values;
-  mesh.validate().throwIfFailed("surface tracking");
+namespace {
+
+// TrackingMesh::build's steps.
+
+void checkIsoValues(const Mesh& mesh, const std::vector<float>& iso_values) {
   if (static_cast<int>(iso_values.size()) != mesh.vertexCount())
     throw Error(ErrorCode::kInvalidArgument,
                 "surface tracking: " + std::to_string(iso_values.size()) +
@@ -194,56 +197,69 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
                       mesh.describeVertex(static_cast<int>(v)) +
                       ") has iso value " + std::to_string(iso_values[v]) +
                       ", expected [0, 1]");
-  TrackingMesh out;
-  out.rings = OneRings::build(mesh.positions, mesh.triangles);
-  out.relaxation = RelaxationWeights::build(out.rings, mesh.positions);
-  out.iso_values = iso_values;
-  out.triangles = mesh.triangles;
-  out.diagonal = boundingBoxDiagonal(mesh.positions);
-  out.ring_lengths.resize(out.rings.neighbours.size());
-  for (int v = 0; v < mesh.vertexCount(); ++v)
-    for (uint32_t i = out.rings.offsets[v]; i < out.rings.offsets[v + 1]; ++i)
-      out.ring_lengths[i] =
-          (mesh.positions.row(out.rings.neighbours[i]) - mesh.positions.row(v))
-              .norm();
+}
 
-  // Normal adjacency over the welded mesh: a vertex gathers the triangles
-  // of every vertex of its group whose rest normal agrees with its own.
+// Each ring entry's rest length |neighbour - vertex|.
+std::vector<float> restRingLengths(const Mesh& mesh, const OneRings& rings) {
+  std::vector<float> lengths(rings.neighbours.size());
+  for (int v = 0; v < mesh.vertexCount(); ++v)
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+      lengths[i] =
+          (mesh.positions.row(rings.neighbours[i]) - mesh.positions.row(v))
+              .norm();
+  return lengths;
+}
+
+// Normal adjacency over the welded mesh: a vertex gathers the triangles of
+// every vertex of its group whose rest normal agrees with its own.
+VertexTriangleAdjacency weldedNormalAdjacency(const Mesh& mesh,
+                                              const OneRings& rings) {
+  VertexTriangleAdjacency out;
   const int vertex_count = mesh.vertexCount();
   const VertexTriangleAdjacency plain =
       VertexTriangleAdjacency::build(mesh.triangles, vertex_count);
   std::vector<std::vector<int>> members(vertex_count);
   for (int v = 0; v < vertex_count; ++v)
-    members[out.rings.representative[v]].push_back(v);
-  out.normal_adjacency.offsets.assign(vertex_count + 1, 0);
+    members[rings.representative[v]].push_back(v);
+  out.offsets.assign(vertex_count + 1, 0);
   for (int v = 0; v < vertex_count; ++v) {
-    out.normal_adjacency.offsets[v] =
-        static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+    out.offsets[v] = static_cast<uint32_t>(out.triangles.size());
     const Eigen::Vector3f n = mesh.normals.row(v).transpose();
-    for (int u : members[out.rings.representative[v]]) {
+    for (int u : members[rings.representative[v]]) {
       if (u != v && !(mesh.normals.row(u).dot(n) >= kSameNormalCos)) continue;
-      out.normal_adjacency.triangles.insert(
-          out.normal_adjacency.triangles.end(),
-          plain.triangles.begin() + plain.offsets[u],
-          plain.triangles.begin() + plain.offsets[u + 1]);
+      out.triangles.insert(out.triangles.end(),
+                           plain.triangles.begin() + plain.offsets[u],
+                           plain.triangles.begin() + plain.offsets[u + 1]);
     }
   }
-  out.normal_adjacency.offsets[vertex_count] =
-      static_cast<uint32_t>(out.normal_adjacency.triangles.size());
+  out.offsets[vertex_count] = static_cast<uint32_t>(out.triangles.size());
+  return out;
+}
 
-  // Home fields, partner pairs and the rest margins.
-  const int field_count = fields.grids.fieldCount();
-  out.field_count = field_count;
+// The composition's blended pairs, for activePartners.
+std::vector<TrackingMesh::PartnerPair> partnerPairs(
+    const ImplicitFields& fields) {
+  std::vector<TrackingMesh::PartnerPair> out;
   for (const int k : fields.composition.blended_pairs) {
     const FieldPair& pair = fields.composition.pairs.at(k);
-    PartnerPair partner;
+    TrackingMesh::PartnerPair partner;
     partner.field_a = pair.field_a;
     partner.field_b = pair.field_b;
     partner.joint_a = fields.grids.grids.at(pair.field_a).joint;
     partner.joint_b = fields.grids.grids.at(pair.field_b).joint;
     partner.blend = pair.op == CompositionOperator::kBlend;
-    out.partner_pairs.push_back(partner);
+    out.push_back(partner);
   }
+  return out;
+}
+
+// Each vertex's home field (its part's field, -1: none) and rest margin (how
+// far the other parts' fields exceed it at rest, where they already do).
+void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
+                          TrackingMesh* out_mesh) {
+  TrackingMesh& out = *out_mesh;
+  const int vertex_count = mesh.vertexCount();
+  const int field_count = out.field_count;
   out.home_field.assign(vertex_count, -1);
   out.home_margin.assign(vertex_count, 0.f);
   const std::vector<int>& vertex_joint = fields.partition.vertex_joint;
@@ -269,22 +285,28 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
       out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
     }
   }
-  // The tracked vertices by home field, then along a Morton curve of their
-  // rest positions: neighbouring work-items sample the same grids near the
-  // same nodes (cache reuse) and walk the same neighbourhood list.
+}
+
+// 21 bits spread to every third bit, for a Morton code.
+uint64_t spreadBits(uint64_t x) {
+  x &= 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffULL;
+  x = (x | x << 16) & 0x1f0000ff0000ffULL;
+  x = (x | x << 8) & 0x100f00f00f00f00fULL;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+  x = (x | x << 2) & 0x1249249249249249ULL;
+  return x;
+}
+
+// The tracked vertices by home field, then along a Morton curve of their
+// rest positions: neighbouring work-items sample the same grids near the
+// same nodes (cache reuse) and walk the same neighbourhood list.
+std::vector<int> marchOrder(const Mesh& mesh, const TrackingMesh& out) {
+  const int vertex_count = mesh.vertexCount();
   const Eigen::Vector3f lo = mesh.positions.colwise().minCoeff();
   const Eigen::Vector3f extent =
       (mesh.positions.colwise().maxCoeff().transpose() - lo)
           .cwiseMax(Eigen::Vector3f::Constant(1e-20f));
-  auto spread = [](uint64_t x) {  // 21 bits -> every third bit
-    x &= 0x1fffff;
-    x = (x | x << 32) & 0x1f00000000ffffULL;
-    x = (x | x << 16) & 0x1f0000ff0000ffULL;
-    x = (x | x << 8) & 0x100f00f00f00f00fULL;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
-    x = (x | x << 2) & 0x1249249249249249ULL;
-    return x;
-  };
   std::vector<std::pair<uint64_t, int>> keyed;
   for (int v = 0; v < vertex_count; ++v) {
     if (!(out.iso_values[v] > 0) || out.rings.representative[v] != v) continue;
@@ -292,9 +314,9 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
         (mesh.positions.row(v).transpose() - lo).cwiseQuotient(extent);
     uint64_t code = 0;
     for (int a = 0; a < 3; ++a)
-      code |=
-          spread(static_cast<uint64_t>(std::clamp(t[a], 0.f, 1.f) * 1048575.f))
-          << a;
+      code |= spreadBits(
+                  static_cast<uint64_t>(std::clamp(t[a], 0.f, 1.f) * 1048575.f))
+              << a;
     keyed.emplace_back(code, v);
   }
   std::stable_sort(
@@ -302,8 +324,30 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
         const int ha = out.home_field[a.second], hb = out.home_field[b.second];
         return ha != hb ? ha < hb : a.first < b.first;
       });
-  out.march_order.reserve(keyed.size());
-  for (const auto& k : keyed) out.march_order.push_back(k.second);
+  std::vector<int> order;
+  order.reserve(keyed.size());
+  for (const auto& k : keyed) order.push_back(k.second);
+  return order;
+}
+
+}  // namespace
+
+TrackingMesh TrackingMesh::build(const Mesh& mesh,
+                                 const ImplicitFields& fields) {
+  mesh.validate().throwIfFailed("surface tracking");
+  checkIsoValues(mesh, fields.iso_values);
+  TrackingMesh out;
+  out.rings = OneRings::build(mesh.positions, mesh.triangles);
+  out.relaxation = RelaxationWeights::build(out.rings, mesh.positions);
+  out.iso_values = fields.iso_values;
+  out.triangles = mesh.triangles;
+  out.diagonal = boundingBoxDiagonal(mesh.positions);
+  out.ring_lengths = restRingLengths(mesh, out.rings);
+  out.normal_adjacency = weldedNormalAdjacency(mesh, out.rings);
+  out.field_count = fields.grids.fieldCount();
+  out.partner_pairs = partnerPairs(fields);
+  homeFieldsAndMargins(mesh, fields, &out);
+  out.march_order = marchOrder(mesh, out);
   return out;
 }
 
@@ -746,8 +790,8 @@ Eigen::Vector4f CpuSurfaceTracking::sampleAt(
     const ComposedFieldSampler& sampler, int v, const Eigen::Vector3f& x,
     Eigen::Vector4f* per_field, HomeSamples* home) const {
   const int h = mesh_->home_field[v];
-  if (options_.field_neighbourhoods && h >= 0 && h < sampler.fieldCount() &&
-      sampler.insideBox(h, x)) {
+  if (detail::tuningOf(options_).field_neighbourhoods && h >= 0 &&
+      h < sampler.fieldCount() && sampler.insideBox(h, x)) {
     const FieldNeighbourhoods& nb = neighbourhoods_;
     const int* list = nb.entries.data() + nb.offsets[h];
     const int count = nb.offsets[h + 1] - nb.offsets[h];

@@ -1,12 +1,12 @@
 // Baked implicit fields evaluated on an OpenCL device.
 //
-// Host class of kernels/fields.cl: uploads a character's baked grids
+// Host class of kernels/fields/evaluate.cl: uploads a character's baked grids
 // (isk/fields/field_grid.hpp) once, then per frame uploads only the fields'
 // model -> bone transforms and evaluates every field and their composition
 // (isk/fields/field_composition.hpp: blend and bulge pairs through the operator
 // tables, uploaded with the fields) at posed points. Results match the CPU
-// reference FieldEvaluationJob (isk/fields/field_evaluation.hpp) to float rounding on
-// both paths.
+// reference FieldEvaluationJob (isk/fields/field_evaluation.hpp) to float
+// rounding on both paths.
 //
 // Storage of the grids and operator tables (FieldStorage):
 //   kImage   one read-only 3D image (CL_RGBA / CL_FLOAT) holding every field
@@ -35,7 +35,7 @@
 // holding the same values); either way the kernels sample exactly the
 // values the reference samples, and fieldBytes() says what is held.
 //
-// Other kernels can sample the same data (kernels/fields.cl: functions
+// Other kernels can sample the same data (kernels/fields/compose.cl: functions
 // sample_field, compose_pair, sample_composed): build them with
 // buildOptions(), put ISK_FIELD_PARAMS (five consecutive arguments: field
 // data, field params, field count, resolution, field cells) and
@@ -60,6 +60,10 @@
 
 namespace isk {
 
+namespace detail {
+struct MergedFieldGroups;  // lib/src/cl/field_groups.hpp
+}  // namespace detail
+
 // Where the grids and operator tables live on the device (see above).
 enum class FieldStorage { kAuto, kImage, kBuffer };
 
@@ -72,7 +76,7 @@ const char* fieldStorageName(FieldStorage storage);
 // the wrong shape.
 class ClFieldEvaluation {
  public:
-  // float4 per field in the params buffer (kernels/fields.cl's layout).
+  // float4 per field in the params buffer (kernels/fields/sample.cl's layout).
   static constexpr int kParamStride = 7;
 
   // Validates the grids against `joint_count` (the length of the transform
@@ -160,7 +164,8 @@ class ClFieldEvaluation {
   // path (the other is a null object).
   const cl::Image3D& fieldImage() const { return image_; }
   const cl::Buffer& fieldBuffer() const { return nodes_; }
-  // kParamStride float4 per field (fields.cl's layout), the last setPose's.
+  // kParamStride float4 per field (fields/sample.cl's layout), the last
+  // setPose's.
   const cl::Buffer& fieldParams() const { return params_; }
   // The same kParamStride * 4 floats per field, as uploaded.
   const std::vector<float>& hostFieldParams() const { return params_staging_; }
@@ -203,6 +208,9 @@ class ClFieldEvaluation {
 
  private:
   void chooseStorage(FieldStorage requested, const FieldGridSet& fields);
+  // The program, the grids, tables, cell bounds and static parameters on
+  // the device (the constructor's last step).
+  void uploadFields(const detail::MergedFieldGroups& merged);
   void uploadImage(const std::vector<const FieldGrid*>& grids);
   void uploadBuffer(const std::vector<const FieldGrid*>& grids);
   void uploadComposition(const Composition* composition);

@@ -1,10 +1,10 @@
-// Surface tracking on an OpenCL device: host class of kernels/tracking.cl
+// Surface tracking on an OpenCL device: host class of kernels/tracking/
 // (projection with the contact stop, tangential relaxation, beta diffusion,
 // localized Laplacian smoothing) and of kernels/normals.cl.
 //
 // Same job, stages and formulas as the CPU reference isk::CpuSurfaceTracking
-// (isk/tracking/surface_tracking.hpp, where they are documented). Every buffer stays
-// on the device: a frame uploads nothing but the pose (through the field
+// (isk/tracking/surface_tracking.hpp, where they are documented). Every buffer
+// stays on the device: a frame uploads nothing but the pose (through the field
 // evaluation's setPose), starts from skinned positions already on the device
 // (isk::ClSkinning's buffers) and leaves its results in positionsBuffer() and
 // normalsBuffer(). The per-vertex state (marching, converged, contact, lost,
@@ -22,6 +22,10 @@
 #include "isk/tracking/surface_tracking.hpp"
 
 namespace isk {
+
+namespace detail {
+struct TrackingDeviceLayout;  // lib/src/cl/tracking_layout.hpp
+}  // namespace detail
 
 // One character's surface tracking on an OpenCL device (see above).
 class ClSurfaceTracking {
@@ -93,13 +97,22 @@ class ClSurfaceTracking {
   void launch(cl::Kernel& kernel, Stage stage, int items = -1);
   void addTime(Stage stage, double ms);
   void collectTimes();
-  // Binds kernels/tracking.cl's ISK_TRACKING_PARAMS from first_index on.
+  // Binds kernels/tracking/project.cl's ISK_TRACKING_PARAMS from first_index
+  // on.
   void setContactArgs(cl::Kernel& kernel, cl_uint first_index) const;
   void readFloats(const cl::Buffer& buffer, void* out, size_t bytes,
                   const char* what);
   // Throws isk::Error(kInvalidArgument) naming `stage` before begin().
   void checkBegun(const char* stage) const;
   bool begun_ = false;
+
+  // The constructor's steps: the programs and kernels; the tracking mesh in
+  // the device's order (detail::trackingDeviceLayout, built on the host);
+  // the broad phase's buffers, which each pose fills; the per-vertex state.
+  void buildKernels(const ClFieldEvaluation& fields);
+  void uploadLayout(const detail::TrackingDeviceLayout& layout);
+  void allocateBroadPhase(const TrackingMesh& mesh);
+  void allocateState(const TrackingMesh& mesh);
 
   ClFieldEvaluation* fields_;
   std::shared_ptr<ClContext> context_;
@@ -112,9 +125,10 @@ class ClSurfaceTracking {
   // device, 1 (no split) on others.
   static constexpr int kCpuCellsPerAxis = 4;
   int cells_per_axis_ = 1;
-  // The lane tests (options.lane_tests, on a CPU device): per home field
+  // The lane tests (the tuning's lane_tests, on a CPU device): per home field
   // its neighbourhood's fields in chunks of 8 lanes, built and uploaded at
-  // each pose by buildLanes (layout: kernels/tracking.cl, ISK_LANE_TESTS).
+  // each pose by buildLanes (layout: kernels/tracking/project.cl,
+  // ISK_LANE_TESTS).
   bool lane_tests_ = false;
   void buildLanes();
   std::vector<int> lane_offsets_staging_;  // read by non-blocking writes
@@ -125,7 +139,7 @@ class ClSurfaceTracking {
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_;
-  cl::Buffer every_cell_;  // options.occupied_cells off: all bits set
+  cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
       neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,

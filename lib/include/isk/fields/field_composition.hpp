@@ -112,7 +112,7 @@ std::vector<float> pairJointAngles(const Composition& composition,
 // Composes the samples of a pair (value, model-space gradient each) with
 // its operator through its table and controller, alpha capped by
 // `joint_angle` (pairJointAngles): value and gradient. The kernels do
-// exactly this (kernels/fields.cl: compose_pair).
+// exactly this (kernels/fields/compose.cl: compose_pair).
 Eigen::Vector4f composePair(const Composition& composition,
                             const FieldPair& pair, const Eigen::Vector4f& a,
                             const Eigen::Vector4f& b, float joint_angle);

@@ -67,7 +67,7 @@ Eigen::AlignedBox3f occupiedBox(const FieldGrid& grid);
 // values) below b / 255, with at least 1 / 255 to spare (b = floor(255 m)
 // + 2 for the largest node value m, at most 255; 255: no bound). The
 // tracking kernel skips the loads of a field whose bound shows it can
-// change nothing at a point (SurfaceTrackingOptions::value_bounds).
+// change nothing at a point (the tracking tuning's value_bounds).
 std::vector<uint8_t> cellValueBounds(const FieldGrid& grid);
 
 // Precision of the grid nodes (FieldGridSet::precision).

@@ -32,7 +32,7 @@
 // Boundary, isolated and duplicate vertices are neither relaxed nor smoothed.
 //
 // Contact by home field (home_contact, on by default; our addition, see
-// README "Surface tracking"): each vertex has a home field, the field of the
+// docs/algorithm.md): each vertex has a home field, the field of the
 // bone it was partitioned to. A vertex that geometric skinning pushed into
 // another part (the largest other field o exceeds its home field h by more
 // than at rest: o - h - margin > tolerance, with f > iso) marches instead to
@@ -60,20 +60,25 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
-#include "isk/fields/field_composition.hpp"
-#include "isk/fields/field_evaluation.hpp"
-#include "isk/fields/field_grid.hpp"
-#include "isk/fields/implicit_fields.hpp"
 #include "isk/core/mesh.hpp"
 #include "isk/core/one_ring.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/validation.hpp"
 #include "isk/core/vertex_normals.hpp"
+#include "isk/fields/field_composition.hpp"
+#include "isk/fields/field_evaluation.hpp"
+#include "isk/fields/field_grid.hpp"
+#include "isk/fields/implicit_fields.hpp"
 
 namespace isk {
+
+namespace detail {
+struct TrackingTuning;  // lib/src/tracking/tracking_tuning.hpp
+}  // namespace detail
 
 // The parameters of tracking (above); the defaults are the paper's values
 // where it gives one.
@@ -84,9 +89,8 @@ struct SurfaceTrackingOptions {
   int projection_steps = 2;
   // Eq. 4's step factor, (0, 1]. The paper's 0.35 is its compromise
   // between speed of convergence and accuracy: larger steps stop the
-  // vertices sooner (0.7: frames about two thirds as long on PoCL, the
-  // vertices about 1e-4 of the diagonal away on average), and at 1 some
-  // jump the contact surface (README, Benchmarks).
+  // vertices sooner and a little farther from their iso values, and at 1
+  // some jump the contact surface (docs/performance.md).
   float sigma = 0.35f;
   float contact_angle_degrees = 55.f;  // gradient jump that stops a vertex
   float tolerance = 1e-3f;             // field units: converged below it
@@ -110,37 +114,13 @@ struct SurfaceTrackingOptions {
   // Laplacian steps.
   int crease_diffusion = 5;
   int crease_steps = 10;
-  // Speed only, the same result either way (benchmarks switch them off to
-  // measure them): sample a vertex's home field neighbourhood instead of
-  // every field while it is in its home field's box (FieldNeighbourhoods),
-  // march the vertices in TrackingMesh::march_order rather than by index
-  // (OpenCL), skip the grid loads of cells that are zero at all 8 nodes
-  // (occupiedCells; OpenCL), and skip the fields whose value bound in the
-  // cell shows they can change nothing at the point (cellValueBounds: below
-  // the home field's value and the best so far; OpenCL, projection).
-  bool field_neighbourhoods = true;
-  bool march_order = true;
-  bool occupied_cells = true;
-  bool value_bounds = true;
-  // Speed only, OpenCL: with field_neighbourhoods, each home field's box
-  // cut into this many cells per axis, a vertex sampling only the fields
-  // that can be non-zero in its cell (splitNeighbourhoodsIntoCells); 1: the
-  // whole box; 0: the device's choice (4 on a CPU device for a character
-  // with at least 100 tracked vertices per field, where it takes 8-10% off
-  // the projection on PoCL; 1 elsewhere).
-  int neighbourhood_cells = 0;
-  // Speed only, OpenCL on a CPU device, with field_neighbourhoods: the
-  // projection tests the fields listed in a vertex's cell (their bounding
-  // spheres and grid boxes) eight at a time, in float8 lanes over each home
-  // field's neighbourhood, rather than one by one; the same result. On
-  // PoCL the projection 1.09-1.21x faster (README, Benchmarks); other
-  // devices keep the loop (a GPU runs vector types lane by lane).
-  bool lane_tests = true;
-  // Speed only, OpenCL: the relaxation launches skip the stopped vertices,
-  // the diffusion and Laplacian launches the vertices out of reach of every
-  // contact and crease vertex (each step pushes its reach to the vertices
-  // whose rows list it), instead of copying them; the same result.
-  bool active_vertices = true;
+  // Speed-only switches of the device's tracking and of the broad phase
+  // (field neighbourhoods, march order, occupied cells, value bounds,
+  // neighbourhood cells, lane tests, active vertices): the same frames
+  // whichever way they are set. The benchmarks and tests set them
+  // (lib/src/tracking/tracking_tuning.hpp); null: every switch on and the
+  // device's choice of neighbourhood cells.
+  std::shared_ptr<const detail::TrackingTuning> tuning;
 
   // Names the first bad parameter and its valid range.
   Validation validate() const;

@@ -1,30 +1,24 @@
-// Surface tracking (Vaillant et al. 2013, section 5): projection of each
-// vertex onto its rest iso value with the 55 degree contact stop (eq. 4),
-// tangential relaxation (eq. 5, 6) and localized Laplacian smoothing (eq. 7).
-// OpenCL C 1.2. CPU reference: lib/src/tracking/surface_tracking.cpp (formulas and
-// states documented in lib/include/isk/tracking/surface_tracking.hpp). Host class:
-// lib/src/cl/surface_tracking.cpp, which builds this file after fields.cl
-// (the include below is resolved from the embedded sources; compiled on its
-// own, pass -I kernels).
+// Surface tracking, the projection (Vaillant et al. 2013, section 5, eq. 4):
+// each vertex marches back to its rest iso value in the composed field,
+// stopping at the 55 degree contact stop, or to the contact surface of the
+// part that holds it (the contact by home field). OpenCL C 1.2. CPU
+// reference: lib/src/tracking/surface_tracking.cpp (formulas and states
+// documented in lib/include/isk/tracking/surface_tracking.hpp). Host class:
+// lib/src/cl/surface_tracking.cpp. The includes are resolved from the
+// embedded sources; compiled on its own, pass -I kernels.
 //
 // Every per-vertex array and the one-rings are in the device's vertex order
 // (ClSurfaceTracking: the tracked vertices in march order, then the others),
 // so the projection reads its vertices in sequence; track_begin gathers the
 // skinned positions into it and track_copy_duplicates scatters the results
-// back to the mesh's order.
-// Layout: positions are packed float triples (vload3/vstore3); one uchar
-// state per vertex (ISK_TRACK_* of abi.h); prev_gradients one float4 per vertex
-// (xyz the unit gradient of the vertex's last projection step, w = 1 when
-// set); one-rings as compressed rows (ring_offsets, ring_neighbours,
-// ring_weights), and the same rows filtered to the neighbours within each
-// vertex's smoothing radius (near_offsets, near_neighbours); one uchar
-// relaxation rule per vertex (ISK_RULE_FIXED: neither relaxed nor smoothed).
+// back to the mesh's order. Positions are packed float triples
+// (vload3/vstore3); one uchar state per vertex (ISK_TRACK_* of abi.h).
+// prev_gradients: one float4 per vertex, xyz the unit gradient of the
+// vertex's last projection step, w what that step was (ISK_GRADIENT_*).
 
-#include "fields.cl"
+#include "fields/compose.cl"
 
-// reach[v] (active vertices, track_beta_init): the first diffusion step at
-// which v may change; ISK_REACH_NONE (abi.h): out of reach of every contact
-// and crease.
+
 // Cells per axis of each home field's box in the cell lists (the host
 // passes its choice for the device: 1, the whole box, or more).
 #ifndef ISK_NEIGHBOUR_CELLS
@@ -288,8 +282,8 @@ __kernel void track_begin(const uint vertex_count,
 }
 
 // The paper's steps, named as in the CPU reference (surface_tracking.cpp):
-// newton_step, contact_stop, march_to_contact, tangential_relaxation,
-// smoothing_step.
+// newton_step, contact_stop, march_to_contact; tangential_relaxation is in
+// tracking/relax.cl, smoothing_step in tracking/smooth.cl.
 
 // Eq. 4: one step of x towards the surface where the field's value gap
 // (iso - f) closes, along the unit gradient, of sigma * gap / |gradient|
@@ -344,27 +338,6 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
   return ISK_CONTACT_MARCH_STEPPED;
 }
 
-// Eq. 5, 6: x moved by mu times its ring's weighted centroid offset, within
-// the tangent plane of the surface it marches to (frame: signed distance,
-// unit normal); mu fades the move out one unit of distance away.
-ISK_INLINE float3 tangential_relaxation(const float3 x, const float3 centroid,
-                                        const float4 frame) {
-  const float3 unit = frame.yzw;
-  const float t = fabs(frame.x) - 1.0f;
-  const float mu = max(0.0f, 1.0f - t * t * t * t);
-  float3 d = centroid - x;
-  d -= (d.x * unit.x + d.y * unit.y + d.z * unit.z) * unit;
-  return x + mu * d;
-}
-
-// Eq. 7: one localized Laplacian step, the offset d to the near centroid
-// weighted by beta (b, contacts) and the tangential part of it by gamma
-// (c, creases).
-ISK_INLINE float3 smoothing_step(const float3 x, const float3 d,
-                                 const float3 tangential, const float b,
-                                 const float c) {
-  return x + b * d + (1.0f - b) * c * tangential;
-}
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
 // cos(contact angle), tolerance (field units), unused; step_limits per
@@ -444,203 +417,4 @@ __kernel void track_project(const uint march_count, __global float* positions,
   states[v] = state;
   prev_gradients[v] = prev;
   relax_frames[v] = frame;
-}
-
-// One tangential relaxation step, positions_in -> positions_out. With
-// skip_stopped = 0 every vertex is written; with 1 (active vertices) only
-// the marching ones: the others are the same in both buffers (track_begin
-// writes both, and track_project writes a vertex that stops to both). The
-// surface the vertex marches to (its iso-surface, or the contact surface
-// while it marches to a contact) is taken as its last projection step
-// sampled it (relax_frames: signed distance, unit normal; zero before any
-// step), so relaxation samples no field.
-__kernel void track_relax(const uint vertex_count,
-                          __global const float* positions_in,
-                          __global float* positions_out,
-                          __global const uchar* states,
-                          __global const float4* relax_frames,
-                          __global const uchar* rules,
-                          __global const uint* ring_offsets,
-                          __global const int* ring_neighbours,
-                          __global const float* ring_weights,
-                          const uint skip_stopped) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
-  const bool marching = states[v] == ISK_TRACK_MARCHING;
-  if (!marching && skip_stopped) return;
-  const float3 x = vload3(v, positions_in);
-  float3 out = x;
-  const float4 frame = relax_frames[v];
-  const float3 unit = frame.yzw;
-  if (marching && rules[v] != ISK_RULE_FIXED &&
-      unit.x * unit.x + unit.y * unit.y + unit.z * unit.z > 0.0f) {
-    float3 centroid = (float3)(0.0f);
-    const uint end = ring_offsets[v + 1];
-    for (uint i = ring_offsets[v]; i < end; ++i)
-      centroid += ring_weights[i] * vload3(ring_neighbours[i], positions_in);
-    out = tangential_relaxation(x, centroid, frame);
-  }
-  vstore3(out, v, positions_out);
-}
-
-// Marks v and the vertices whose rows list it (reverse near rows) as in
-// reach from diffusion step `step` on: pushed, so that no vertex reads its
-// neighbours to learn it. Concurrent writers store the same value.
-ISK_INLINE void push_reach(const uint v, const uint step,
-                       __global const uint* reverse_offsets,
-                       __global const int* reverse_neighbours,
-                       __global uchar* reach) {
-  const uchar r = (uchar)min(step, (uint)ISK_REACH_MAX);
-  const uint end = reverse_offsets[v + 1];
-  for (uint i = reverse_offsets[v]; i < end; ++i) {
-    const int w = reverse_neighbours[i];
-    if (reach[w] > r) reach[w] = r;
-  }
-}
-
-// (beta, gamma): beta = 1 on contact vertices, gamma = 1 on crease
-// vertices, 0 elsewhere, in both buffers (the diffusion of active vertices
-// writes only the vertices in reach; the others stay 0 in either). Contact
-// and crease vertices put themselves and the vertices whose rows list them
-// in reach of the first diffusion step (track_begin cleared reach).
-__kernel void track_beta_init(const uint vertex_count,
-                              __global const uchar* states,
-                              __global float2* beta,
-                              __global float2* beta_other,
-                              __global const uint* reverse_offsets,
-                              __global const int* reverse_neighbours,
-                              __global uchar* reach) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
-  const uchar state = states[v];
-  const float2 b = (float2)(state == ISK_TRACK_CONTACT ? 1.0f : 0.0f,
-                            state == ISK_TRACK_CREASE ? 1.0f : 0.0f);
-  beta[v] = b;
-  beta_other[v] = b;
-  if (b.x > 0.0f || b.y > 0.0f) {
-    reach[v] = 1;
-    push_reach(v, 1, reverse_offsets, reverse_neighbours, reach);
-  }
-}
-
-// Diffusion step `step` (1, 2, ...) of (beta, gamma) over the neighbours
-// within the vertex's smoothing radius (rest distance): its one-ring
-// filtered once by the host, in ring order, as compressed rows
-// (near_offsets, near_neighbours), so no ring length is read per step.
-// beta_in -> beta_out, of the channels whose `channels` entry is 1: sources
-// stay at 1, the others take the mean of themselves and their neighbours
-// (duplicates, with no ring, keep theirs). With active = 1 only the
-// vertices in reach of this step do it (the others are 0 and have no
-// neighbour that is not, so the mean would leave them 0); a vertex left
-// non-zero in a channel that `next_channels` (the next step's) diffuses
-// puts the vertices whose rows list it in reach of the next step.
-__kernel void track_beta_diffuse(const uint vertex_count,
-                                 __global const uchar* states,
-                                 __global const uint* near_offsets,
-                                 __global const int* near_neighbours,
-                                 __global const float2* beta_in,
-                                 __global float2* beta_out,
-                                 const float2 channels, const uint active,
-                                 const uint step, const float2 next_channels,
-                                 __global const uint* reverse_offsets,
-                                 __global const int* reverse_neighbours,
-                                 __global uchar* reach) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
-  if (active && reach[v] > step) return;
-  const float2 b = beta_in[v];
-  float2 sum = b;
-  float count = 1.0f;
-  const uint end = near_offsets[v + 1];
-  for (uint i = near_offsets[v]; i < end; ++i) {
-    sum += beta_in[near_neighbours[i]];
-    count += 1.0f;
-  }
-  float2 out = sum / count;
-  if (channels.x == 0.0f) out.x = b.x;
-  if (channels.y == 0.0f) out.y = b.y;
-  if (states[v] == ISK_TRACK_CONTACT) out.x = 1.0f;
-  if (states[v] == ISK_TRACK_CREASE) out.y = 1.0f;
-  beta_out[v] = out;
-  if (active && ((out.x != 0.0f && next_channels.x != 0.0f) ||
-                 (out.y != 0.0f && next_channels.y != 0.0f)))
-    push_reach(v, step + 1, reverse_offsets, reverse_neighbours, reach);
-}
-
-// One Laplacian step over the neighbours within the smoothing radius (the
-// filtered rows of track_beta_diffuse), positions_in -> positions_out: full,
-// weighted by beta (eq. 7), and tangential (normal to the whole one-ring)
-// weighted by (1 - beta) gamma; `weights` (0 or 1 each) switches the two
-// off once their steps are done. Every vertex is written when
-// active_reach is 0; otherwise only those in reach of diffusion step
-// active_reach (the others have beta = gamma = 0), and with
-// `copy_marching` (the first step) the vertices still marching too: the
-// only ones the rounds leave different in the two buffers (track_relax).
-__kernel void track_smooth(const uint vertex_count,
-                           __global const uchar* rules,
-                           __global const uchar* kinds,
-                           __global const uint* ring_offsets,
-                           __global const int* ring_neighbours,
-                           __global const uint* near_offsets,
-                           __global const int* near_neighbours,
-                           __global const float2* beta,
-                           __global const float* positions_in,
-                           __global float* positions_out,
-                           const float2 weights, const uint active_reach,
-                           __global const uchar* reach,
-                           __global const uchar* states,
-                           const uint copy_marching) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
-  if (active_reach > 0 && reach[v] > active_reach &&
-      !(copy_marching && states[v] == ISK_TRACK_MARCHING))
-    return;
-  const float3 x = vload3(v, positions_in);
-  float3 out = x;
-  const float2 bc = beta[v] * weights;
-  if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != ISK_RULE_FIXED) {
-    float3 centroid = (float3)(0.0f);
-    const uint near_begin = near_offsets[v];
-    const int near = (int)(near_offsets[v + 1] - near_begin);
-    for (int i = 0; i < near; ++i)
-      centroid += vload3(near_neighbours[near_begin + i], positions_in);
-    centroid /= (float)max(near, 1);
-    const float3 d = near > 0 ? centroid - x : (float3)(0.0f);
-    float3 tangential = (float3)(0.0f);
-    if (bc.y > 0.0f && near > 0 && kinds[v] == ISK_RING_CLOSED) {
-      const uint begin = ring_offsets[v];
-      const uint end = ring_offsets[v + 1];
-      float3 normal = (float3)(0.0f);
-      // Each neighbour loaded once: the next edge starts where this ends.
-      const float3 first = vload3(ring_neighbours[begin], positions_in) - x;
-      float3 a = first;
-      for (uint i = begin; i < end; ++i) {
-        const float3 b =
-            i + 1 < end ? vload3(ring_neighbours[i + 1], positions_in) - x
-                        : first;
-        normal += cross(a, b);
-        a = b;
-      }
-      const float length =
-          sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
-      if (length > 0.0f && isfinite(length)) {  // inf: no direction
-        normal /= length;
-        tangential =
-            d - (d.x * normal.x + d.y * normal.y + d.z * normal.z) * normal;
-      }
-    }
-    out = smoothing_step(x, d, tangential, bc.x, bc.y);
-  }
-  vstore3(out, v, positions_out);
-}
-
-// Back to the mesh's order: vertex v takes the position at device index
-// representative[v] (its own, or its seam representative's).
-__kernel void track_copy_duplicates(const uint vertex_count,
-                                    __global const int* representative,
-                                    __global const float* positions_in,
-                                    __global float* positions_out) {
-  const uint v = get_global_id(0);
-  if (v >= vertex_count) return;
-  vstore3(vload3(representative[v], positions_in), v, positions_out);
 }

@@ -1,0 +1,179 @@
+// Surface tracking, localized smoothing (Vaillant et al. 2013, section 5,
+// eq. 7): beta (contacts) and gamma (creases) diffused from their sources
+// over the one-rings, then Laplacian steps weighted by them. OpenCL C 1.2.
+// CPU reference: CpuSurfaceTracking::smooth
+// (lib/src/tracking/surface_tracking.cpp). The rows filtered to the
+// neighbours within each vertex's smoothing radius: near_offsets,
+// near_neighbours; reach[v] (active vertices): the first diffusion step at
+// which v may change, ISK_REACH_NONE out of reach of every contact and
+// crease.
+//
+// Every per-vertex array and the one-rings are in the device's vertex order
+// (ClSurfaceTracking: the tracked vertices in march order, then the others),
+// so the projection reads its vertices in sequence; track_begin gathers the
+// skinned positions into it and track_copy_duplicates scatters the results
+// back to the mesh's order. Positions are packed float triples
+// (vload3/vstore3); one uchar state per vertex (ISK_TRACK_* of abi.h).
+
+#include "common.h"
+
+
+// Eq. 7: one localized Laplacian step, the offset d to the near centroid
+// weighted by beta (b, contacts) and the tangential part of it by gamma
+// (c, creases).
+ISK_INLINE float3 smoothing_step(const float3 x, const float3 d,
+                                 const float3 tangential, const float b,
+                                 const float c) {
+  return x + b * d + (1.0f - b) * c * tangential;
+}
+
+// Marks v and the vertices whose rows list it (reverse near rows) as in
+// reach from diffusion step `step` on: pushed, so that no vertex reads its
+// neighbours to learn it. Concurrent writers store the same value.
+ISK_INLINE void push_reach(const uint v, const uint step,
+                       __global const uint* reverse_offsets,
+                       __global const int* reverse_neighbours,
+                       __global uchar* reach) {
+  const uchar r = (uchar)min(step, (uint)ISK_REACH_MAX);
+  const uint end = reverse_offsets[v + 1];
+  for (uint i = reverse_offsets[v]; i < end; ++i) {
+    const int w = reverse_neighbours[i];
+    if (reach[w] > r) reach[w] = r;
+  }
+}
+
+// (beta, gamma): beta = 1 on contact vertices, gamma = 1 on crease
+// vertices, 0 elsewhere, in both buffers (the diffusion of active vertices
+// writes only the vertices in reach; the others stay 0 in either). Contact
+// and crease vertices put themselves and the vertices whose rows list them
+// in reach of the first diffusion step (track_begin cleared reach).
+__kernel void track_beta_init(const uint vertex_count,
+                              __global const uchar* states,
+                              __global float2* beta,
+                              __global float2* beta_other,
+                              __global const uint* reverse_offsets,
+                              __global const int* reverse_neighbours,
+                              __global uchar* reach) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const uchar state = states[v];
+  const float2 b = (float2)(state == ISK_TRACK_CONTACT ? 1.0f : 0.0f,
+                            state == ISK_TRACK_CREASE ? 1.0f : 0.0f);
+  beta[v] = b;
+  beta_other[v] = b;
+  if (b.x > 0.0f || b.y > 0.0f) {
+    reach[v] = 1;
+    push_reach(v, 1, reverse_offsets, reverse_neighbours, reach);
+  }
+}
+
+// Diffusion step `step` (1, 2, ...) of (beta, gamma) over the neighbours
+// within the vertex's smoothing radius (rest distance): its one-ring
+// filtered once by the host, in ring order, as compressed rows
+// (near_offsets, near_neighbours), so no ring length is read per step.
+// beta_in -> beta_out, of the channels whose `channels` entry is 1: sources
+// stay at 1, the others take the mean of themselves and their neighbours
+// (duplicates, with no ring, keep theirs). With active = 1 only the
+// vertices in reach of this step do it (the others are 0 and have no
+// neighbour that is not, so the mean would leave them 0); a vertex left
+// non-zero in a channel that `next_channels` (the next step's) diffuses
+// puts the vertices whose rows list it in reach of the next step.
+__kernel void track_beta_diffuse(const uint vertex_count,
+                                 __global const uchar* states,
+                                 __global const uint* near_offsets,
+                                 __global const int* near_neighbours,
+                                 __global const float2* beta_in,
+                                 __global float2* beta_out,
+                                 const float2 channels, const uint active,
+                                 const uint step, const float2 next_channels,
+                                 __global const uint* reverse_offsets,
+                                 __global const int* reverse_neighbours,
+                                 __global uchar* reach) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  if (active && reach[v] > step) return;
+  const float2 b = beta_in[v];
+  float2 sum = b;
+  float count = 1.0f;
+  const uint end = near_offsets[v + 1];
+  for (uint i = near_offsets[v]; i < end; ++i) {
+    sum += beta_in[near_neighbours[i]];
+    count += 1.0f;
+  }
+  float2 out = sum / count;
+  if (channels.x == 0.0f) out.x = b.x;
+  if (channels.y == 0.0f) out.y = b.y;
+  if (states[v] == ISK_TRACK_CONTACT) out.x = 1.0f;
+  if (states[v] == ISK_TRACK_CREASE) out.y = 1.0f;
+  beta_out[v] = out;
+  if (active && ((out.x != 0.0f && next_channels.x != 0.0f) ||
+                 (out.y != 0.0f && next_channels.y != 0.0f)))
+    push_reach(v, step + 1, reverse_offsets, reverse_neighbours, reach);
+}
+
+// One Laplacian step over the neighbours within the smoothing radius (the
+// filtered rows of track_beta_diffuse), positions_in -> positions_out: full,
+// weighted by beta (eq. 7), and tangential (normal to the whole one-ring)
+// weighted by (1 - beta) gamma; `weights` (0 or 1 each) switches the two
+// off once their steps are done. Every vertex is written when
+// active_reach is 0; otherwise only those in reach of diffusion step
+// active_reach (the others have beta = gamma = 0), and with
+// `copy_marching` (the first step) the vertices still marching too: the
+// only ones the rounds leave different in the two buffers (track_relax).
+__kernel void track_smooth(const uint vertex_count,
+                           __global const uchar* rules,
+                           __global const uchar* kinds,
+                           __global const uint* ring_offsets,
+                           __global const int* ring_neighbours,
+                           __global const uint* near_offsets,
+                           __global const int* near_neighbours,
+                           __global const float2* beta,
+                           __global const float* positions_in,
+                           __global float* positions_out,
+                           const float2 weights, const uint active_reach,
+                           __global const uchar* reach,
+                           __global const uchar* states,
+                           const uint copy_marching) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  if (active_reach > 0 && reach[v] > active_reach &&
+      !(copy_marching && states[v] == ISK_TRACK_MARCHING))
+    return;
+  const float3 x = vload3(v, positions_in);
+  float3 out = x;
+  const float2 bc = beta[v] * weights;
+  if ((bc.x > 0.0f || bc.y > 0.0f) && rules[v] != ISK_RULE_FIXED) {
+    float3 centroid = (float3)(0.0f);
+    const uint near_begin = near_offsets[v];
+    const int near = (int)(near_offsets[v + 1] - near_begin);
+    for (int i = 0; i < near; ++i)
+      centroid += vload3(near_neighbours[near_begin + i], positions_in);
+    centroid /= (float)max(near, 1);
+    const float3 d = near > 0 ? centroid - x : (float3)(0.0f);
+    float3 tangential = (float3)(0.0f);
+    if (bc.y > 0.0f && near > 0 && kinds[v] == ISK_RING_CLOSED) {
+      const uint begin = ring_offsets[v];
+      const uint end = ring_offsets[v + 1];
+      float3 normal = (float3)(0.0f);
+      // Each neighbour loaded once: the next edge starts where this ends.
+      const float3 first = vload3(ring_neighbours[begin], positions_in) - x;
+      float3 a = first;
+      for (uint i = begin; i < end; ++i) {
+        const float3 b =
+            i + 1 < end ? vload3(ring_neighbours[i + 1], positions_in) - x
+                        : first;
+        normal += cross(a, b);
+        a = b;
+      }
+      const float length =
+          sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
+      if (length > 0.0f && isfinite(length)) {  // inf: no direction
+        normal /= length;
+        tangential =
+            d - (d.x * normal.x + d.y * normal.y + d.z * normal.z) * normal;
+      }
+    }
+    out = smoothing_step(x, d, tangential, bc.x, bc.y);
+  }
+  vstore3(out, v, positions_out);
+}

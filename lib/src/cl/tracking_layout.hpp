@@ -1,0 +1,62 @@
+// The tracking mesh laid out for the device: everything ClSurfaceTracking
+// uploads once per character, computed on the host with no device, so that
+// it can be tested on its own.
+//
+// The device keeps the vertices in their march order (the tracked vertices
+// first, in TrackingMesh::march_order, then the others by index): the
+// projection reads and writes its per-vertex data in sequence, and march
+// slot k is vertex k on the device. Every per-vertex array below is in that
+// order (#V entries, index k: the mesh vertex order[k]); ring entries are
+// device indices.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "isk/tracking/surface_tracking.hpp"
+
+namespace isk::detail {
+
+struct TrackingDeviceLayout {
+  std::vector<int> order;    // #V: the mesh vertex at device index k
+  std::vector<int> slot_of;  // #V: the device index of mesh vertex v
+  int march_count = 0;       // the tracked vertices, order's first entries
+  // Seam copies: the device index of each vertex's representative, by
+  // device index (representative) and by mesh index (finish_source: where
+  // finish() takes each mesh vertex's result from).
+  std::vector<int> representative, finish_source;
+  std::vector<float> iso_values, home_margins;
+  std::vector<int> home_fields;
+  std::vector<uint8_t> rules, kinds;  // RelaxationRule, RingKind
+  std::vector<float> step_limits;     // 2 per vertex: max step, min gradient
+  std::vector<float> smoothing_radii;
+  // The one-rings as compressed rows, #V + 1 offsets.
+  std::vector<uint32_t> ring_offsets;
+  std::vector<int> ring_neighbours;
+  std::vector<float> ring_weights;
+  // The rows filtered to the neighbours within each vertex's smoothing
+  // radius (rest distance), in ring order: the rows the diffusion and the
+  // Laplacian steps average over.
+  std::vector<uint32_t> near_offsets;
+  std::vector<int> near_neighbours;
+  // Their transpose: the vertices whose near rows list each vertex, where a
+  // contact or crease vertex pushes its reach (active vertices).
+  std::vector<uint32_t> reverse_offsets;
+  std::vector<int> reverse_neighbours;
+};
+
+// The tuning's march_order off keeps the tracked vertices by index instead
+// of TrackingMesh::march_order (tracking/tracking_tuning.hpp).
+TrackingDeviceLayout trackingDeviceLayout(
+    const TrackingMesh& mesh, const SurfaceTrackingOptions& options);
+
+// Cells per axis of the neighbourhoods' split for a device: the tuning's when
+// set; else on a CPU device `cpu_cells` for a character with 100 tracked
+// vertices per field or more, since the split's host time and upload grow
+// with the fields and its gain with the vertices (docs/performance.md);
+// elsewhere 1, the whole box: a GPU's frame is bound by launches.
+int neighbourhoodCellsPerAxis(const TrackingMesh& mesh,
+                              const SurfaceTrackingOptions& options,
+                              bool cpu_device, int cpu_cells);
+
+}  // namespace isk::detail

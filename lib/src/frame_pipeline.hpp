@@ -1,0 +1,42 @@
+// One implicit skinning frame on an OpenCL device, the same for one
+// character (ImplicitSkinner) and for a crowd (ImplicitCrowd): geometric
+// skinning (ClSkinning), then surface tracking in the composed fields
+// (ClFieldEvaluation, ClSurfaceTracking; Vaillant et al. 2013, section 5),
+// enqueued without a wait between them; the results stay on the device.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "isk/implicit_skinner.hpp"
+
+namespace isk::detail {
+
+struct DeviceFramePipeline {
+  // Builds the device parts in pipeline order: skinning of `mesh` (#V) by
+  // `weights` over `joints` joints, the field groups' evaluation, the
+  // tracking of `tracking_mesh` (kept here: the tracking holds a reference).
+  DeviceFramePipeline(
+      std::shared_ptr<ClContext> context, const Mesh& mesh,
+      const SkinWeights& weights, int joints,
+      const std::vector<ClFieldEvaluation::FieldGroup>& field_groups,
+      TrackingMesh tracking_mesh, const ImplicitSkinnerOptions& options);
+
+  // One frame: #joints skinning transforms; returns when the device is
+  // done, with `times` set.
+  void run(const TransformList& skinning);
+  // Blocking reads of the last frame, timed into times.readback_ms.
+  void readPositions(Matrix3Xf& out);
+  void readNormals(Matrix3Xf& out);
+
+  std::shared_ptr<ClContext> context;
+  ImplicitSkinnerOptions options;
+  std::unique_ptr<const TrackingMesh> tracking_mesh;
+  std::unique_ptr<ClSkinning> skinning;
+  std::unique_ptr<ClFieldEvaluation> field_evaluation;
+  std::unique_ptr<ClSurfaceTracking> tracking;
+  ImplicitStageTimes times;
+  bool has_run = false;
+};
+
+}  // namespace isk::detail
