@@ -7,20 +7,12 @@
 #include <iostream>
 #include <thread>
 
+#include "isk/core/stopwatch.hpp"
 #include "isk/fields/field_evaluation.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/skinning/skinning.hpp"
 
 namespace isk::samples {
-namespace {
-
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
-}
-
-}  // namespace
 
 void parallelRows(int count, const std::function<void(int, int)>& work) {
   const int threads = std::max(

@@ -8,12 +8,14 @@
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <sstream>
 
 #include "field_pictures.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/fields/field_composition.hpp"
 #include "isk/fields/implicit_fields.hpp"
 #include "isk/tools/procedural.hpp"
@@ -143,12 +145,6 @@ std::string upper(std::string text) {
   return text;
 }
 
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
-}
-
 std::string fixed(double value, int digits) {
   std::ostringstream out;
   out << std::fixed << std::setprecision(digits) << value;
@@ -274,7 +270,7 @@ OperatorPanel evaluateOperatorPanel(CompositionOperator op, double theta,
   panel.values.assign(static_cast<size_t>(size) * size, 0.f);
   std::shared_ptr<const OperatorTable> table;
   if (op != CompositionOperator::kUnion) {
-    table = sharedOperatorTable(op, table_resolution);
+    table = sharedOperatorTable(op, table_resolution, nullptr, &panel.warnings);
   }
   // Per image row, so the threads never share a maximum.
   std::vector<double> row_error(size, 0.0);
@@ -387,6 +383,8 @@ OperatorPlotsReport writeOperatorPlots(const std::string& out_dir,
     for (size_t c = 0; c < thetas.size(); ++c) {
       const OperatorPanel panel =
           evaluateOperatorPanel(op, thetas[c], size, options.table_resolution);
+      for (const std::string& warning : panel.warnings)
+        std::cerr << options.label << ": warning: " << warning << "\n";
       const int column = static_cast<int>(c);
       blit(image, renderOperatorPanel(panel.values, size),
            layout.panelX(column), layout.panelY(0));

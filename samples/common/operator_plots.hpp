@@ -64,6 +64,9 @@ struct OperatorPanel {
   // Largest |table - direct| g over the pixels; unset for the union (no
   // table: the max is exact).
   std::optional<double> max_table_error;
+  // The operator table cache's trouble, if any (an unusable or unwritable
+  // file: the table was baked again); the library prints nothing.
+  std::vector<std::string> warnings;
 };
 OperatorPanel evaluateOperatorPanel(CompositionOperator op, double theta,
                                     int size, int table_resolution);

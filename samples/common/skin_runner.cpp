@@ -12,7 +12,9 @@
 #include <sstream>
 
 #include "isk/core/error.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/io/import.hpp"
+#include "isk/io/rig_params.hpp"
 #include "isk/tools/mesh_metrics.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/tools/procedural.hpp"
@@ -25,13 +27,6 @@ namespace {
 
 constexpr const char* kBuiltinPrefix = "builtin:";
 constexpr double kPi = 3.14159265358979323846;
-
-using Clock = std::chrono::steady_clock;
-
-double millisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start)
-      .count();
-}
 
 bool parseIndex(const std::string& text, int* index) {
   if (text.empty() || text.size() > 9) return false;
@@ -57,12 +52,6 @@ std::string describeClips(const Rig& rig) {
 bool isFrameFileName(const std::string& name) {
   static const std::regex pattern(R"(frame_[0-9]+\.(obj|ply)(\.tmp-[0-9]+)?)");
   return std::regex_match(name, pattern);
-}
-
-bool samePath(const fs::path& a, const fs::path& b) {
-  std::error_code ec;
-  const bool same = fs::equivalent(a, b, ec);
-  return !ec && same;
 }
 
 // Throws isk::Error(kInternal) naming the first vertex whose skinned
@@ -104,9 +93,26 @@ std::string describeFailedFrame(int frame, int frames, const std::string& why,
 
 }  // namespace
 
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  const bool same = fs::equivalent(a, b, ec);
+  return !ec && same;
+}
+
+bool isBuiltinInput(const std::string& input) {
+  return input.rfind(kBuiltinPrefix, 0) == 0;
+}
+
+std::string paramsFileBeside(const std::string& input) {
+  if (isBuiltinInput(input)) return {};
+  const std::string beside = rigParamsPathFor(input);
+  std::error_code ec;
+  return fs::is_regular_file(beside, ec) ? beside : std::string();
+}
+
 Rig loadRig(const std::string& input, ImportOptions options) {
   const std::string prefix = kBuiltinPrefix;
-  if (input.compare(0, prefix.size(), prefix) == 0) {
+  if (isBuiltinInput(input)) {
     return makeBuiltinRig(input.substr(prefix.size()));
   }
   // Progress on stderr: one update per stage and per tenth, so a large file
@@ -215,7 +221,8 @@ void prepareOutputFolder(const std::string& dir, bool overwrite,
     entries.push_back(name);
     if (!isFrameFileName(name)) continue;
     // The input is never removed nor replaced, --overwrite or not.
-    if (!protected_path.empty() && samePath(entry.path(), protected_path)) {
+    if (!protected_path.empty() &&
+        samePath(entry.path().string(), protected_path)) {
       throw Error(ErrorCode::kIo,
                   dir + ": the input " + protected_path +
                       " has a frame file's name in this folder; choose "
@@ -355,6 +362,30 @@ TimeSummary summarize(std::vector<double> values) {
   return summary;
 }
 
+double medianCount(const std::vector<int>& counts) {
+  return summarize(std::vector<double>(counts.begin(), counts.end())).median;
+}
+
+CountTotals countTotals(const std::vector<int>& counts) {
+  CountTotals totals;
+  for (const int count : counts) {
+    totals.max = std::max(totals.max, count);
+    totals.total += count;
+  }
+  return totals;
+}
+
+void placeSideBySide(std::vector<GltfTrack>& tracks) {
+  std::vector<Matrix3Xf> all_frames;
+  for (const GltfTrack& track : tracks)
+    all_frames.insert(all_frames.end(), track.positions.begin(),
+                      track.positions.end());
+  const float spacing = gltfTrackSpacing(all_frames);
+  const float middle = (tracks.size() - 1) / 2.f;
+  for (size_t i = 0; i < tracks.size(); ++i)
+    tracks[i].offset = {spacing * (i - middle), 0, 0};
+}
+
 RunResult runFrames(const Rig& rig, const AnimationClip& clip,
                     FrameSkinner& skinner, const RunOptions& options) {
   const Mesh& mesh = rig.mesh;
@@ -403,7 +434,7 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
     const TransformList skinning =
         skinningTransforms(skeleton, globalTransforms(skeleton, locals));
 
-    const auto start = Clock::now();
+    const auto start = std::chrono::steady_clock::now();
     skinFrame(skinning);
     result.frame_ms.push_back(millisecondsSince(start));
     checkFiniteFrame(mesh, positions, normals);

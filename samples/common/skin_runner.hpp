@@ -1,6 +1,8 @@
 // The frame loop shared by isk-skin and the demo: load a rig, pick a clip,
 // skin it frame by frame on an OpenCL device or on the CPU reference, time
-// the stages, measure quality and write the frames.
+// the stages, measure quality and write the frames; and what else both
+// need: builtin inputs and parameter files, counts per frame summed up, the
+// animated glTF's layout.
 #pragma once
 
 #include <functional>
@@ -14,6 +16,7 @@
 #include "isk/cl/skinning.hpp"
 #include "isk/skinning/cpu_skinning.hpp"
 #include "isk/io/export.hpp"
+#include "isk/io/gltf_export.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/io/import.hpp"
 #include "isk/rig/rig.hpp"
@@ -27,6 +30,17 @@ namespace isk::samples {
 // file with `options` (their progress is replaced by a progress line on
 // stderr). Throws isk::Error.
 Rig loadRig(const std::string& input, ImportOptions options = {});
+
+// True for "builtin:NAME" (a procedural rig), false for a file.
+bool isBuiltinInput(const std::string& input);
+
+// True when `a` and `b` name one existing file (or folder).
+bool samePath(const std::string& a, const std::string& b);
+
+// The per-joint parameter file beside a file input (<input>.isk.json,
+// isk::rigParamsPathFor) when it exists; empty for a builtin input and when
+// there is none.
+std::string paramsFileBeside(const std::string& input);
 
 // How the samples import files by default: in a child process stopped after
 // two minutes, since some corrupt files make Assimp hang (isk/io/import.hpp).
@@ -182,5 +196,20 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
 
 // Median (mean of the middle two for an even count), nearest-rank p95, min.
 TimeSummary summarize(std::vector<double> values);
+
+// Median of per-frame counts (0 for none), as summarize() takes it.
+double medianCount(const std::vector<int>& counts);
+
+// The largest of per-frame counts and their sum (both 0 for none).
+struct CountTotals {
+  int max = 0;
+  long long total = 0;
+};
+CountTotals countTotals(const std::vector<int>& counts);
+
+// Places `tracks` side by side along x in their order, centred on the
+// middle one, isk::gltfTrackSpacing (over every frame of every track)
+// apart: the layout of isk-skin's --gltf and the demo's animation.glb.
+void placeSideBySide(std::vector<GltfTrack>& tracks);
 
 }  // namespace isk::samples

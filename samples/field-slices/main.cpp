@@ -19,6 +19,7 @@
 
 #include "field_pictures.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/stopwatch.hpp"
 #include "isk/io/export.hpp"
 #include "isk/fields/field_evaluation.hpp"
 #include "isk/fields/implicit_fields.hpp"
@@ -46,12 +47,6 @@ struct Options {
   std::string clip;
 };
 
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now() - start)
-      .count();
-}
-
 std::string joinNames(const std::vector<std::string>& names) {
   std::string text;
   for (const std::string& n : names) text += (text.empty() ? "" : ", ") + n;
@@ -65,7 +60,7 @@ isk::Rig loadInput(const std::string& input) {
   if (std::find(builtins.begin(), builtins.end(), input) != builtins.end()) {
     return isk::makeBuiltinRig(input);
   }
-  if (input.rfind("builtin:", 0) == 0) return isk::samples::loadRig(input);
+  if (isk::samples::isBuiltinInput(input)) return isk::samples::loadRig(input);
   std::error_code ec;
   if (!fs::exists(input, ec)) {
     throw isk::Error(isk::ErrorCode::kIo,
@@ -168,7 +163,7 @@ int run(const Options& options) {
 
   const auto load_start = std::chrono::steady_clock::now();
   const isk::Rig rig = loadInput(options.rig);
-  const double load_ms = millisecondsSince(load_start);
+  const double load_ms = isk::millisecondsSince(load_start);
   for (const std::string& warning : rig.warnings) {
     std::cerr << "warning: " << warning << "\n";
   }

@@ -1,0 +1,394 @@
+#include "skin_options.hpp"
+
+#include <cmath>
+#include <filesystem>
+
+#include "isk/core/error.hpp"
+#include "isk/fields/composition_operator.hpp"
+#include "isk/io/rig_params.hpp"
+#include "skin_targets.hpp"
+
+namespace isk::samples::skin {
+
+namespace {
+
+// CLI::Range lets NaN through.
+CLI::Validator finiteNonNegative() {
+  return CLI::Validator(
+      [](const std::string& text) -> std::string {
+        double value = 0;
+        if (!CLI::detail::lexical_cast(text, value) || !std::isfinite(value) ||
+            value < 0 || value > 1e9) {
+          return "expected a number of at least 0, got '" + text + "'";
+        }
+        return {};
+      },
+      "NUMBER >= 0");
+}
+
+// INPUT, the clip and frames, the device and the output files.
+void addRunOptions(CLI::App& app, Options& options) {
+  app.add_option("INPUT", options.input,
+                 "asset file (glTF, FBX, COLLADA, .x, ...) or builtin:NAME; "
+                 "builtin:list lists the names")
+      ->required();
+  app.add_option("--clip", options.clip,
+                 "clip name or index (default: clip 0; a procedural bend "
+                 "when the rig has none)");
+  app.add_option("--frames", options.frames,
+                 "frames sampled uniformly over the clip (default: 30 per "
+                 "second, plus one)")
+      ->check(CLI::Range(1, 10000000));
+  app.add_option("--method", options.method, "lbs, dqs or implicit")
+      ->check(CLI::IsMember({"lbs", "dqs", "implicit"}))
+      ->capture_default_str();
+  app.add_option("--device", options.device,
+                 "auto (default OpenCL device; ISK_DEVICE overrides), "
+                 "reference (CPU) or opencl:N")
+      ->check(CLI::Validator(checkDevice, "DEVICE"))
+      ->capture_default_str();
+  app.add_option("--out", options.out_dir,
+                 "folder for frame_0000.obj, frame_0001.obj, ...");
+  app.add_option("--report", options.report, "JSON report file");
+  app.add_option("--import-timeout", options.import_timeout,
+                 "seconds the import may take before it is stopped with an "
+                 "error (it runs in a child process; 0: no limit, in this "
+                 "process)")
+      ->check(finiteNonNegative())
+      ->capture_default_str();
+  app.add_option("--import-memory", options.import_memory_mib,
+                 "MiB of memory the import may take before it is stopped with "
+                 "an error (0: no limit)")
+      ->check(finiteNonNegative())
+      ->capture_default_str();
+  app.add_option("--format", options.format, "frame file format: obj or ply")
+      ->check(CLI::IsMember({"obj", "ply"}))
+      ->capture_default_str();
+  app.add_flag("--overwrite", options.overwrite,
+               "write into a non-empty --out folder (replacing the frame "
+               "files of an earlier run) and replace an existing --report");
+  app.add_option("--params", options.params,
+                 "per-joint parameters (JSON, see README.md); default: "
+                 "INPUT.isk.json when it exists");
+  app.add_option("--save-params", options.save_params,
+                 "write the effective per-joint parameters (file + command "
+                 "line) to this JSON file");
+  app.add_option("--gltf", options.gltf,
+                 "animated glTF (.glb) of the frames beside LBS and DQS, "
+                 "playable in any glTF viewer");
+}
+
+// The composition operators and their controllers.
+struct CompositionFlags {
+  CLI::Option* op;
+  CLI::Option* joint_operator;
+  CLI::Option* bulge_strength;
+  CLI::Option* blend_theta;
+};
+
+CompositionFlags addCompositionOptions(CLI::App& app, Options& options) {
+  CompositionFlags flags;
+  flags.op =
+      app.add_option("--operator", options.default_operator,
+                     "composition operator at every joint: union, blend or "
+                     "bulge; builds the implicit fields and reports the iso "
+                     "drift")
+          ->check(CLI::IsMember({"union", "blend", "bulge"}))
+          ->capture_default_str();
+  // One NAME=OP per occurrence, so that a following INPUT is not taken.
+  flags.joint_operator =
+      app.add_option("--joint-operator", options.joint_operators,
+                     "NAME=OP: operator OP at the joint NAME (repeatable; "
+                     "split at the last '=')")
+          ->allow_extra_args(false);
+  flags.bulge_strength =
+      app.add_option("--bulge-strength", options.bulge_strength,
+                     "bulge strength in [0, 1]")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str();
+  flags.blend_theta =
+      app.add_option("--blend-theta", options.blend_theta,
+                     "theta of the full blend in radians, [0, pi/4] (0: the "
+                     "strongest blend)")
+          ->check(CLI::Range(0.0, kThetaUnion))
+          ->capture_default_str();
+  return flags;
+}
+
+// The surface tracking of --method implicit.
+std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
+  SurfaceTrackingOptions& tracking = options.tracking;
+  return {
+      app.add_option("--rounds", tracking.rounds,
+                     "implicit: rounds of (projection steps, relaxation)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
+      app.add_option("--sigma", tracking.sigma,
+                     "implicit: Newton step factor of eq. 4, (0, 1]; larger is "
+                     "faster and less accurate (docs/performance.md)")
+          ->check(CLI::Range(1e-6, 1.0))
+          ->capture_default_str(),
+      app.add_option("--contact-angle", tracking.contact_angle_degrees,
+                     "implicit: gradient jump in degrees that stops a "
+                     "vertex at a contact")
+          ->check(CLI::Range(1e-3, 180.0))
+          ->capture_default_str(),
+      app.add_option("--smoothing-steps", tracking.smoothing_steps,
+                     "implicit: Laplacian steps around contacts (eq. 7)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
+      app.add_flag("!--no-relaxation", tracking.relaxation,
+                   "implicit: no tangential relaxation (eq. 5, 6)"),
+      app.add_option("--grid-precision", options.grid_precision,
+                     "implicit: float, or half (grids rounded to 16-bit "
+                     "floats: half the device memory, frames within a small "
+                     "fraction of the mesh's size)")
+          ->check(CLI::IsMember({"float", "half"}))
+          ->capture_default_str()};
+}
+
+// The parameter file of the run: --params, else <INPUT>.isk.json beside a
+// file input (said on `log`); empty for none.
+std::string paramsFile(const Options& options, std::ostream& log) {
+  if (!options.params.empty()) return options.params;
+  const std::string beside = paramsFileBeside(options.input);
+  if (!beside.empty()) {
+    log << "isk-skin: parameters from " << beside
+        << " (found next to the asset; --params FILE to choose another)\n";
+  }
+  return beside;
+}
+
+// The command line wins over the file, option by option.
+void applyCommandLine(const Options& options, const Skeleton& skeleton,
+                      RigParams& params) {
+  const CompositionOptions cli = parseCompositionOptions(options);
+  if (options.operator_given) params.default_operator = cli.default_operator;
+  if (options.bulge_strength_given) params.bulge_strength = cli.bulge_strength;
+  if (options.blend_theta_given) params.blend_theta = cli.blend_theta;
+  for (const auto& [name, op] : cli.joint_operators) {
+    if (skeleton.find(name) < 0) continue;  // reported by the validation
+    params.joints[name].op = op;
+  }
+}
+
+// --save-params: checks that what is written reads back (a joint key that
+// no longer fits its operator after a command-line change is an error
+// here), then writes it.
+void saveParams(const Options& options, const Skeleton& skeleton,
+                const RigParams& params, std::ostream& log) {
+  checkSaveParamsTarget(options);
+  parseRigParams(formatRigParams(params), options.save_params, &skeleton);
+  createParentFolder(options.save_params);
+  saveRigParams(options.save_params, params);
+  log << "isk-skin: wrote the parameters to " << options.save_params << "\n";
+}
+
+}  // namespace
+
+void addOptions(CLI::App& app, Options& options) {
+  addRunOptions(app, options);
+  const CompositionFlags composition = addCompositionOptions(app, options);
+  const std::vector<CLI::Option*> tracking = addTrackingOptions(app, options);
+  app.callback([&options, composition, tracking] {
+    for (const CLI::Option* option : tracking)
+      options.tracking_given = options.tracking_given || option->count() > 0;
+    options.operator_given = composition.op->count() > 0;
+    options.bulge_strength_given = composition.bulge_strength->count() > 0;
+    options.blend_theta_given = composition.blend_theta->count() > 0;
+    options.composition_given =
+        options.operator_given || composition.joint_operator->count() > 0 ||
+        options.bulge_strength_given || options.blend_theta_given;
+  });
+}
+
+std::string checkDevice(const std::string& value) {
+  if (value == "auto" || value == "reference" || value == "gpu" ||
+      value == "cpu") {
+    return {};
+  }
+  const std::string prefix = "opencl:";
+  if (value.rfind(prefix, 0) == 0 && value.size() > prefix.size() &&
+      value.find_first_not_of("0123456789", prefix.size()) ==
+          std::string::npos) {
+    return {};
+  }
+  return "expected auto, reference or opencl:N, got '" + value + "'";
+}
+
+CompositionOptions parseCompositionOptions(const Options& options) {
+  CompositionOptions composition;
+  if (!parseCompositionOperator(options.default_operator,
+                                &composition.default_operator)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "--operator '" + options.default_operator +
+                    "': expected union, blend or bulge");
+  }
+  // CLI11's range checks let NaN through.
+  if (!(options.bulge_strength >= 0 && options.bulge_strength <= 1)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "--bulge-strength " + std::to_string(options.bulge_strength) +
+                    ": expected a value in [0, 1]");
+  }
+  if (!(options.blend_theta >= 0 && options.blend_theta <= kThetaUnion)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "--blend-theta " + std::to_string(options.blend_theta) +
+                    ": expected radians in [0, pi/4]");
+  }
+  composition.bulge_strength = options.bulge_strength;
+  composition.blend_theta = options.blend_theta;
+  for (const std::string& arg : options.joint_operators) {
+    const std::string where = "--joint-operator '" + arg + "': ";
+    const size_t equals = arg.rfind('=');
+    if (equals == std::string::npos) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  where + "expected NAME=OP (OP: union, blend or bulge)");
+    }
+    const std::string name = arg.substr(0, equals);
+    const std::string op_name = arg.substr(equals + 1);
+    if (name.empty()) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  where + "the joint name before '=' is empty");
+    }
+    CompositionOperator op;
+    if (!parseCompositionOperator(op_name, &op)) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  where + "unknown operator '" + op_name +
+                      "' (expected union, blend or bulge)");
+    }
+    // Two different choices for one joint are a mistake, not "last wins".
+    const auto [it, inserted] = composition.joint_operators.emplace(name, op);
+    if (!inserted && it->second != op) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  where + "joint '" + name + "' already has operator " +
+                      compositionOperatorName(it->second));
+    }
+  }
+  return composition;
+}
+
+void checkTrackingOptions(const Options& options) {
+  if (const Validation valid = options.tracking.validate(); !valid) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "surface tracking: " + valid.reason());
+  }
+}
+
+std::string trackingOptionsWarning(const Options& options) {
+  if (!options.tracking_given || options.method == "implicit") return {};
+  return "isk-skin: warning: the tracking options have no effect without "
+         "--method implicit";
+}
+
+std::vector<std::string> unusedControllerWarnings(
+    const Options& options, const CompositionOptions& composition) {
+  auto used = [&](CompositionOperator op) {
+    if (composition.default_operator == op) return true;
+    for (const auto& entry : composition.joint_operators) {
+      if (entry.second == op) return true;
+    }
+    return false;
+  };
+  std::vector<std::string> warnings;
+  if (options.bulge_strength_given && !used(CompositionOperator::kBulge)) {
+    warnings.push_back(
+        "isk-skin: warning: --bulge-strength has no effect: no joint uses "
+        "bulge");
+  }
+  if (options.blend_theta_given && !used(CompositionOperator::kBlend)) {
+    warnings.push_back(
+        "isk-skin: warning: --blend-theta has no effect: no joint uses "
+        "blend");
+  }
+  return warnings;
+}
+
+void checkJointOperators(const Options& options, const Skeleton& skeleton,
+                         const CompositionOptions& composition) {
+  if (!options.composition_given) return;
+  if (const Validation valid =
+          validateCompositionOptions(skeleton, composition);
+      !valid) {
+    throw Error(ErrorCode::kInvalidArgument,
+                options.input + ": --joint-operator: " + valid.reason());
+  }
+}
+
+SkinningMethod skinningMethod(const Options& options) {
+  return options.method == "lbs" ? SkinningMethod::kLinearBlend
+                                 : SkinningMethod::kDualQuaternion;
+}
+
+MeshFormat frameFormat(const Options& options) {
+  return options.format == "ply" ? MeshFormat::kPly : MeshFormat::kObj;
+}
+
+ImportOptions importOptions(const Options& options) {
+  ImportOptions import_options;
+  import_options.time_limit_seconds = options.import_timeout;
+  import_options.memory_limit_bytes =
+      static_cast<uint64_t>(options.import_memory_mib * kMiB);
+  return import_options;
+}
+
+int frameCount(const Options& options, const AnimationClip& clip) {
+  if (options.frames > 0) return options.frames;
+  const int frames = defaultFrameCount(clip);
+  if (frames > kMaxDefaultFrames) {
+    throw Error(ErrorCode::kInvalidArgument,
+                options.input + ": clip '" + clip.name + "' lasts " +
+                    std::to_string(clip.duration) + " s, " +
+                    std::to_string(frames) +
+                    " frames at 30 per second; pass --frames N");
+  }
+  return frames;
+}
+
+std::optional<ImplicitFieldsOptions> loadParams(const Options& options,
+                                                const Rig& rig,
+                                                std::ostream& log) {
+  const std::string path = paramsFile(options, log);
+  if (path.empty() && options.save_params.empty()) return std::nullopt;
+  RigParams params;
+  if (!path.empty()) {
+    params = loadRigParams(path, &rig.skeleton);
+    if (!options.params.empty())
+      log << "isk-skin: parameters from " << path << "\n";
+  }
+  applyCommandLine(options, rig.skeleton, params);
+  if (!options.save_params.empty())
+    saveParams(options, rig.skeleton, params, log);
+  ImplicitFieldsOptions field_options;
+  applyRigParams(params, &field_options);
+  return field_options;
+}
+
+bool needsFields(const Options& options,
+                 const std::optional<ImplicitFieldsOptions>& params) {
+  return options.composition_given || options.method == "implicit" ||
+         params.has_value();
+}
+
+ImplicitFieldsOptions fieldOptions(
+    const Options& options, const CompositionOptions& composition,
+    const std::optional<ImplicitFieldsOptions>& params) {
+  ImplicitFieldsOptions field_options;
+  field_options.composition = composition;
+  if (params) field_options = *params;
+  if (options.grid_precision == "half")
+    field_options.grid_precision = GridPrecision::kHalf;
+  // Fields are cached on disk (ISK_CACHE_DIR; "off" disables it).
+  field_options.cache = true;
+  return field_options;
+}
+
+ImplicitSkinnerOptions implicitOptions(const Options& options,
+                                       const ImplicitFieldsOptions& fields) {
+  ImplicitSkinnerOptions implicit_options;
+  implicit_options.fields = fields;
+  implicit_options.tracking = options.tracking;
+  implicit_options.base_skinning = SkinningMethod::kDualQuaternion;
+  return implicit_options;
+}
+
+}  // namespace isk::samples::skin

@@ -1,0 +1,178 @@
+#include "skin_report.hpp"
+
+#include <iomanip>
+#include <sstream>
+
+#include "isk/fields/composition_operator.hpp"
+#include "isk/fields/field_composition.hpp"
+#include "isk/fields/field_grid.hpp"
+
+namespace isk::samples::skin {
+
+namespace {
+
+nlohmann::json deviceSection(const ClDeviceInfo* info) {
+  if (!info) return "reference";
+  return {{"platform", info->platform},
+          {"name", info->name},
+          {"version", info->version}};
+}
+
+nlohmann::json qualitySection(const Options& options, const RunResult& result) {
+  nlohmann::json quality;
+  if (result.volume_ratio_min) {
+    quality["volume_ratio"] = {{"min", *result.volume_ratio_min},
+                               {"max", *result.volume_ratio_max}};
+  } else {
+    quality["volume_ratio"] = nullptr;
+    quality["volume_note"] =
+        "the rest pose encloses about no volume (open or flat mesh): no "
+        "ratio";
+  }
+  quality["rest_volume"] = result.rest_volume;
+  quality["rest_pose_error"] = result.rest_pose_error;
+  if (!result.self_intersections.empty()) {
+    const CountTotals totals = countTotals(result.self_intersections);
+    quality["self_intersections"] = {{"max", totals.max},
+                                     {"total", totals.total}};
+  }
+  if (options.method == "implicit") {
+    quality["contact_vertices"] = medianCount(result.contact_vertices);
+  }
+  return quality;
+}
+
+nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
+  return {{"base_skinning", "dqs"},
+          {"rounds", t.rounds},
+          {"projection_steps", t.projection_steps},
+          {"sigma", t.sigma},
+          {"contact_angle_degrees", t.contact_angle_degrees},
+          {"tolerance", t.tolerance},
+          {"relaxation", t.relaxation},
+          {"home_contact", t.home_contact},
+          {"beta_diffusion", t.beta_diffusion},
+          {"smoothing_steps", t.smoothing_steps},
+          {"crease_steps", t.crease_steps}};
+}
+
+}  // namespace
+
+nlohmann::json implicitFieldsSection(const ImplicitFields& fields,
+                                     const Skeleton& skeleton,
+                                     const IsoDrift& drift) {
+  const Composition& composition = fields.composition;
+  nlohmann::json operators = nlohmann::json::object();
+  for (const int index : composition.blended_pairs) {
+    const FieldPair& pair = composition.pairs[index];
+    operators[skeleton.joints[pair.joint].name] =
+        compositionOperatorName(pair.op);
+  }
+  nlohmann::json section;
+  section["composition"] = describeComposition(composition, skeleton);
+  section["operators"] = operators;
+  section["fields"] = fields.grids.fieldCount();
+  section["grid_precision"] = gridPrecisionName(fields.grids.precision);
+  section["build_ms"] = drift.build_ms;
+  section["upload_ms"] = drift.upload_ms;
+  section["operator_tables_mib"] = composition.tableBytes() / kMiB;
+  section["evaluation"] = drift.evaluation;
+  section["tracked_vertices"] = drift.tracked_vertices;
+  if (drift.mean) {
+    section["iso_drift"] = {{"mean", *drift.mean}, {"max", *drift.max}};
+    section["field_ms"] = *drift.field_ms;
+  } else {
+    section["iso_drift"] = nullptr;
+    section["field_ms"] = nullptr;
+    section["drift_note"] =
+        fields.grids.fieldCount() == 0
+            ? "the rig has no implicit field: nothing to measure"
+            : "no vertex lies inside a field's support: nothing to measure";
+  }
+  return section;
+}
+
+nlohmann::json makeReport(const Options& options, const Rig& rig,
+                          const std::string& clip_name, const RunDevice& device,
+                          const PrecomputeTimes& precompute,
+                          const RunResult& result,
+                          const nlohmann::json* implicit_fields) {
+  nlohmann::json report;
+  report["input"] = options.input;
+  report["vertices"] = rig.mesh.vertexCount();
+  report["triangles"] = rig.mesh.triangleCount();
+  report["joints"] = rig.skeleton.jointCount();
+  report["skin_joints"] = rig.skeleton.skinJointCount();
+  report["frames"] = result.frames;
+  report["method"] = options.method;
+  report["clip"] = clip_name;
+  report["device"] = deviceSection(device.info);
+  report["precompute_ms"] = precompute.load_ms + precompute.setup_ms;
+  report["precompute_breakdown_ms"] = {{"load", precompute.load_ms},
+                                       {"build_upload", precompute.setup_ms}};
+  report["frame_ms"] = {{"median", result.frame.median},
+                        {"p95", result.frame.p95},
+                        {"min", result.frame.min}};
+  nlohmann::json stages = nlohmann::json::object();
+  for (const auto& [name, ms] : result.stage_median) stages[name] = ms;
+  report["stage_ms"] = stages;
+  report["quality"] = qualitySection(options, result);
+  report["out"] = options.out_dir.empty() ? nlohmann::json(nullptr)
+                                          : nlohmann::json(options.out_dir);
+  report["format"] = options.format;
+  if (implicit_fields) report["implicit"] = *implicit_fields;
+  if (options.method == "implicit") {
+    report["implicit"]["tracking"] = trackingSection(options.tracking);
+    if (device.tracking_mesh) {
+      report["implicit"]["relaxation_weights"] =
+          device.tracking_mesh->relaxation.describe();
+    }
+  }
+  return report;
+}
+
+std::string formatRunSummary(const Options& options,
+                             const std::string& clip_name,
+                             const std::string& device_name,
+                             const RunResult& result) {
+  std::ostringstream out;
+  out << std::setprecision(4) << "isk-skin: " << result.frames << " frame"
+      << (result.frames == 1 ? "" : "s") << " of clip '" << clip_name << "' ("
+      << options.method << " on " << device_name << "): median "
+      << result.frame.median << " ms/frame, p95 " << result.frame.p95
+      << " ms; volume ratio ";
+  if (result.volume_ratio_min) {
+    out << *result.volume_ratio_min << " to " << *result.volume_ratio_max;
+  } else {
+    out << "n/a";
+  }
+  out << "; rest-pose error " << result.rest_pose_error;
+  if (!result.self_intersections.empty()) {
+    out << "; self-intersections max "
+        << countTotals(result.self_intersections).max;
+  }
+  if (!result.contact_vertices.empty()) {
+    out << "; contact vertices median " << medianCount(result.contact_vertices);
+  }
+  if (!options.out_dir.empty()) {
+    out << "; wrote " << result.files.size() << " files to " << options.out_dir;
+  }
+  out << "\n";
+  return out.str();
+}
+
+std::string formatIsoDriftSummary(const std::string& composition,
+                                  const IsoDrift& drift) {
+  std::ostringstream out;
+  out << std::setprecision(4) << "isk-skin: implicit fields (" << composition
+      << "): ";
+  if (drift.mean) {
+    out << "iso drift mean " << *drift.mean << ", max " << *drift.max
+        << "; field evaluation " << *drift.field_ms << " ms/frame\n";
+  } else {
+    out << "no iso drift to measure\n";
+  }
+  return out.str();
+}
+
+}  // namespace isk::samples::skin

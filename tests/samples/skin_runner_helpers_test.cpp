@@ -1,0 +1,94 @@
+// What isk-skin and the demo share besides the frame loop
+// (samples/common/skin_runner.hpp), without a device: builtin inputs, the
+// parameter file beside an asset, same-file checks, counts per frame summed
+// up, and the side-by-side layout of the animated glTF.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "isk/io/gltf_export.hpp"
+#include "isk/io/rig_params.hpp"
+#include "skin_runner.hpp"
+#include "test_support.hpp"
+
+namespace isk {
+namespace {
+
+using test::ScopedTempDir;
+
+// A track of one frame whose x extent is `width`.
+GltfTrack trackOfWidth(const std::string& name, float width) {
+  GltfTrack track;
+  track.name = name;
+  Matrix3Xf positions(2, 3);
+  positions << 0, 0, 0,  //
+      width, 1, 1;
+  track.positions = {positions};
+  return track;
+}
+
+TEST(SkinRunnerHelpers, BuiltinInputsAreNoFiles) {
+  EXPECT_TRUE(samples::isBuiltinInput("builtin:arm"));
+  EXPECT_TRUE(samples::isBuiltinInput("builtin:"));
+  EXPECT_FALSE(samples::isBuiltinInput("arm.glb"));
+  EXPECT_FALSE(samples::isBuiltinInput("data/builtin:arm"));
+}
+
+TEST(SkinRunnerHelpers, ParameterFileBesideAnAssetWhenItExists) {
+  const ScopedTempDir dir;
+  const std::string asset = dir / "man.glb";
+  std::ofstream(asset) << "asset";
+  EXPECT_EQ(samples::paramsFileBeside(asset), "");
+  std::ofstream(rigParamsPathFor(asset)) << "{}";
+  EXPECT_EQ(samples::paramsFileBeside(asset), asset + ".isk.json");
+  // A builtin rig has no folder to look in.
+  EXPECT_EQ(samples::paramsFileBeside("builtin:arm"), "");
+}
+
+TEST(SkinRunnerHelpers, SamePathNeedsOneExistingFile) {
+  const ScopedTempDir dir;
+  const std::string file = dir / "a.json";
+  std::ofstream(file) << "{}";
+  EXPECT_TRUE(samples::samePath(file, file));
+  EXPECT_TRUE(samples::samePath(file, (dir.path() / "." / "a.json").string()));
+  EXPECT_FALSE(samples::samePath(file, dir / "b.json"));
+  EXPECT_FALSE(samples::samePath(dir / "b.json", dir / "b.json"));
+}
+
+TEST(SkinRunnerHelpers, CountsPerFrameSumUp) {
+  EXPECT_EQ(samples::medianCount({}), 0);
+  EXPECT_EQ(samples::medianCount({5, 1, 3}), 3);
+  EXPECT_EQ(samples::medianCount({4, 1, 2, 3}), 2.5);
+  const samples::CountTotals totals = samples::countTotals({2, 7, 0, 3});
+  EXPECT_EQ(totals.max, 7);
+  EXPECT_EQ(totals.total, 12);
+  const samples::CountTotals none = samples::countTotals({});
+  EXPECT_EQ(none.max, 0);
+  EXPECT_EQ(none.total, 0);
+}
+
+TEST(SkinRunnerHelpers, TracksSitSideBySideAroundTheMiddleOne) {
+  std::vector<GltfTrack> tracks = {trackOfWidth("lbs", 2),
+                                   trackOfWidth("dqs", 5),
+                                   trackOfWidth("implicit", 3)};
+  samples::placeSideBySide(tracks);
+  std::vector<Matrix3Xf> all;
+  for (const GltfTrack& track : tracks) all.push_back(track.positions[0]);
+  const float spacing = gltfTrackSpacing(all);
+  EXPECT_GT(spacing, 5.f);  // more than the widest
+  EXPECT_EQ(tracks[0].offset, Eigen::Vector3f(-spacing, 0, 0));
+  EXPECT_EQ(tracks[1].offset, Eigen::Vector3f(0, 0, 0));
+  EXPECT_EQ(tracks[2].offset, Eigen::Vector3f(spacing, 0, 0));
+  EXPECT_EQ(tracks[0].name, "lbs");  // order and names kept
+
+  std::vector<GltfTrack> two = {trackOfWidth("lbs", 2), trackOfWidth("dqs", 2)};
+  samples::placeSideBySide(two);
+  EXPECT_FLOAT_EQ(two[1].offset.x() - two[0].offset.x(),
+                  gltfTrackSpacing({two[0].positions[0]}));
+  EXPECT_FLOAT_EQ(two[0].offset.x(), -two[1].offset.x());
+}
+
+}  // namespace
+}  // namespace isk
