@@ -18,7 +18,6 @@
 
 #include "fields/compose.cl"
 
-
 // Cells per axis of each home field's box in the cell lists (the host
 // passes its choice for the device: 1, the whole box, or more).
 #ifndef ISK_NEIGHBOUR_CELLS
@@ -337,7 +336,6 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
   *x = newton_step(*x, gc / gc_len, -c, gc_len, sigma, max_step);
   return ISK_CONTACT_MARCH_STEPPED;
 }
-
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
 // cos(contact angle), tolerance (field units), unused; step_limits per

@@ -7,14 +7,9 @@
 // per vertex (ISK_RULE_FIXED: neither relaxed nor smoothed).
 //
 // Every per-vertex array and the one-rings are in the device's vertex order
-// (ClSurfaceTracking: the tracked vertices in march order, then the others),
-// so the projection reads its vertices in sequence; track_begin gathers the
-// skinned positions into it and track_copy_duplicates scatters the results
-// back to the mesh's order. Positions are packed float triples
-// (vload3/vstore3); one uchar state per vertex (ISK_TRACK_* of abi.h).
+// and layout described in tracking/project.cl.
 
 #include "common.h"
-
 
 // Eq. 5, 6: x moved by mu times its ring's weighted centroid offset, within
 // the tangent plane of the surface it marches to (frame: signed distance,

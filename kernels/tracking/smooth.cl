@@ -9,14 +9,9 @@
 // crease.
 //
 // Every per-vertex array and the one-rings are in the device's vertex order
-// (ClSurfaceTracking: the tracked vertices in march order, then the others),
-// so the projection reads its vertices in sequence; track_begin gathers the
-// skinned positions into it and track_copy_duplicates scatters the results
-// back to the mesh's order. Positions are packed float triples
-// (vload3/vstore3); one uchar state per vertex (ISK_TRACK_* of abi.h).
+// and layout described in tracking/project.cl.
 
 #include "common.h"
-
 
 // Eq. 7: one localized Laplacian step, the offset d to the near centroid
 // weighted by beta (b, contacts) and the tangential part of it by gamma
