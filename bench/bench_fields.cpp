@@ -28,8 +28,8 @@
 
 #include "bench_support.hpp"
 #include "isk/cl/field_evaluation.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/fields/implicit_fields.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 
 namespace isk::bench {
 namespace {

@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/rig/rig.hpp"
 #include "isk/core/types.hpp"
+#include "isk/rig/rig.hpp"
 
 namespace isk::bench {
 

@@ -19,14 +19,14 @@
 #include <cstring>
 #include <string>
 
-#include "isk/fields/bone_partition.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/one_ring.hpp"
+#include "isk/fields/bone_partition.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/io/import.hpp"
-#include "isk/core/one_ring.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/rig/rig.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 
 namespace {
 

@@ -8,10 +8,10 @@
 #include <cstring>
 #include <string>
 
-#include "isk/rig/animation.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/implicit_skinner.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/rig/pose.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/tools/procedural.hpp"
 
 namespace isk::test {

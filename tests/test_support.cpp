@@ -18,8 +18,8 @@
 #include <utility>
 
 #include "data_folder.hpp"
-#include "isk/rig/animation.hpp"
 #include "isk/io/import.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/tools/procedural.hpp"
 

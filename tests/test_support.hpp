@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
+#include "isk/core/types.hpp"
 #include "isk/fields/implicit_fields.hpp"
 #include "isk/rig/rig.hpp"
-#include "isk/core/types.hpp"
 
 namespace isk::test {
 

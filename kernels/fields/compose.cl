@@ -40,7 +40,6 @@
   operator_data, pairs, pair_count, pair_angles, controllers, \
       operator_scales
 
-
 // Union (Vaillant et al. 2013, eq. 3): the larger value with its gradient;
 // on ties the one met first stays. Start from (float4)(0): nothing
 // positive gives value 0 and a zero gradient.

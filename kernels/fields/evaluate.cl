@@ -5,7 +5,6 @@
 
 #include "fields/compose.cl"
 
-
 // Arguments (ClFieldEvaluation binds them in this order):
 //   0 points            packed float3 (x y z per point), model space, posed
 //   1 point_count

@@ -203,7 +203,6 @@ ISK_INLINE float4 sample_field_nodes(ISK_FIELD_DATA_T field_data,
   return sample_grid_nodes(field_data, params, field, grid, resolution, u);
 }
 
-
 // Node coordinates of model-space point x (posed) in field `field`'s grid:
 // x is taken to the bone frame by the field's 3x4 rows.
 ISK_INLINE float3 field_node_coords(__global const float4* field_params,

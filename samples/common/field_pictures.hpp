@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "isk/rig/animation.hpp"
+#include "isk/core/types.hpp"
 #include "isk/fields/field_evaluation.hpp"
 #include "isk/fields/field_grid.hpp"
 #include "isk/fields/implicit_fields.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/rig/rig.hpp"
-#include "isk/core/types.hpp"
 #include "slice_image.hpp"
 #include "slice_plane.hpp"
 

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "isk/core/types.hpp"
 #include "isk/fields/composition_operator.hpp"
 #include "isk/rig/skeleton.hpp"
-#include "isk/core/types.hpp"
 #include "slice_image.hpp"
 
 namespace isk::samples {

@@ -15,8 +15,8 @@
 #include "isk/core/stopwatch.hpp"
 #include "isk/io/import.hpp"
 #include "isk/io/rig_params.hpp"
-#include "isk/tools/mesh_metrics.hpp"
 #include "isk/rig/pose.hpp"
+#include "isk/tools/mesh_metrics.hpp"
 #include "isk/tools/procedural.hpp"
 #include "isk/tools/self_intersection.hpp"
 

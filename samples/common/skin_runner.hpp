@@ -11,18 +11,18 @@
 #include <string>
 #include <vector>
 
-#include "isk/rig/animation.hpp"
 #include "isk/cl/runtime.hpp"
 #include "isk/cl/skinning.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
-#include "isk/io/export.hpp"
-#include "isk/io/gltf_export.hpp"
-#include "isk/implicit_skinner.hpp"
-#include "isk/io/import.hpp"
-#include "isk/rig/rig.hpp"
-#include "isk/skinning/skinning.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/vertex_normals.hpp"
+#include "isk/implicit_skinner.hpp"
+#include "isk/io/export.hpp"
+#include "isk/io/gltf_export.hpp"
+#include "isk/io/import.hpp"
+#include "isk/rig/animation.hpp"
+#include "isk/rig/rig.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/skinning/skinning.hpp"
 
 namespace isk::samples {
 

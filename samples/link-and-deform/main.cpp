@@ -8,8 +8,8 @@
 #include <exception>
 
 #include "isk/cl/runtime.hpp"
-#include "isk/io/export.hpp"
 #include "isk/implicit_skinner.hpp"
+#include "isk/io/export.hpp"
 #include "isk/io/import.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/tools/procedural.hpp"

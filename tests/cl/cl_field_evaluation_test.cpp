@@ -25,8 +25,8 @@
 #include "isk/fields/field_evaluation.hpp"
 #include "isk/fields/implicit_fields.hpp"
 #include "isk/rig/pose.hpp"
-#include "isk/tools/procedural.hpp"
 #include "isk/skinning/skinning.hpp"
+#include "isk/tools/procedural.hpp"
 #include "test_support.hpp"
 
 namespace isk {

@@ -1,5 +1,5 @@
-// The global field of a character (isk/fields/field_composition.hpp, eq. 3): joint
-// pairs and their operators, the composed gradient, the blend's union at
+// The global field of a character (isk/fields/field_composition.hpp, eq. 3):
+// joint pairs and their operators, the composed gradient, the blend's union at
 // aligned bones, the bulge strength, the broad phase, and the OpenCL
 // composition against the CPU reference on procedural rigs and assets.
 #include "isk/fields/field_composition.hpp"

@@ -27,13 +27,13 @@
 #include <thread>
 #include <vector>
 
-#include "io/child_process.hpp"
 #include "data_folder.hpp"
+#include "io/child_process.hpp"
+#include "io/rig_serialization.hpp"
 #include "isk/core/error.hpp"
 #include "isk/io/import.hpp"
 #include "isk/tools/procedural.hpp"
 #include "rig_gltf.hpp"
-#include "io/rig_serialization.hpp"
 #include "test_support.hpp"
 
 namespace isk {

@@ -29,16 +29,16 @@
 #include <vector>
 
 #include "data_folder.hpp"
-#include "isk/rig/animation.hpp"
 #include "isk/cl/skinning.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/core/error.hpp"
 #include "isk/fields/implicit_fields.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/io/import.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/rig/pose.hpp"
-#include "isk/tools/procedural.hpp"
 #include "isk/rig/rig.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/tools/procedural.hpp"
 #include "rig_gltf.hpp"
 #include "test_support.hpp"
 

@@ -4,10 +4,10 @@
 
 #include <map>
 
-#include "isk/rig/animation.hpp"
 #include "isk/core/error.hpp"
-#include "isk/tools/mesh_metrics.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/rig/pose.hpp"
+#include "isk/tools/mesh_metrics.hpp"
 #include "isk/tools/procedural.hpp"
 #include "isk/tools/subdivide.hpp"
 #include "test_support.hpp"

@@ -17,8 +17,8 @@
 
 #include "data_folder.hpp"
 #include "isk/fields/bone_partition.hpp"
-#include "isk/tools/procedural.hpp"
 #include "isk/rig/rig.hpp"
+#include "isk/tools/procedural.hpp"
 #include "test_support.hpp"
 
 namespace isk {

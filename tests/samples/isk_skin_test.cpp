@@ -18,8 +18,8 @@
 
 #include "data_folder.hpp"
 #include "isk/io/import.hpp"
-#include "isk/tools/procedural.hpp"
 #include "isk/rig/rig.hpp"
+#include "isk/tools/procedural.hpp"
 #include "rig_gltf.hpp"
 #include "test_support.hpp"
 

@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "isk/core/error.hpp"
-#include "isk/tools/procedural.hpp"
 #include "isk/rig/rig.hpp"
+#include "isk/tools/procedural.hpp"
 #include "slice_image.hpp"
 #include "test_support.hpp"
 

@@ -14,14 +14,14 @@
 
 #include "isk/cl/field_evaluation.hpp"
 #include "isk/cl/skinning.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/core/error.hpp"
-#include "isk/implicit_crowd.hpp"
 #include "isk/fields/implicit_fields.hpp"
+#include "isk/implicit_crowd.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/rig/pose.hpp"
-#include "isk/tools/procedural.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/skinning/skinning.hpp"
+#include "isk/tools/procedural.hpp"
 #include "test_support.hpp"
 
 namespace isk {

@@ -7,14 +7,14 @@
 
 #include <cmath>
 
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/core/dual_quaternion.hpp"
 #include "isk/core/error.hpp"
-#include "isk/tools/mesh_metrics.hpp"
-#include "isk/rig/pose.hpp"
-#include "isk/tools/procedural.hpp"
-#include "isk/skinning/skinning.hpp"
 #include "isk/core/vertex_normals.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/skinning/skinning.hpp"
+#include "isk/tools/mesh_metrics.hpp"
+#include "isk/tools/procedural.hpp"
 #include "test_support.hpp"
 
 namespace isk {

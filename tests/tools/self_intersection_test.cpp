@@ -14,9 +14,9 @@
 #include <utility>
 #include <vector>
 
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/core/error.hpp"
 #include "isk/rig/pose.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/tools/procedural.hpp"
 
 namespace isk {

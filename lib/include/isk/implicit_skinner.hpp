@@ -6,8 +6,8 @@
 //   skinner.readPositions(positions);  // or positionsBuffer() for interop
 //
 // Building (offline, on the CPU): the rig's implicit fields
-// (isk/fields/implicit_fields.hpp: partition, HRBF fits, 32^3 grids, operators per
-// joint, iso values), the one-rings and mean value weights of tracking
+// (isk/fields/implicit_fields.hpp: partition, HRBF fits, 32^3 grids, operators
+// per joint, iso values), the one-rings and mean value weights of tracking
 // (isk/tracking/surface_tracking.hpp), then one upload. A frame on the device:
 // geometric skinning (dual quaternions by default, LBS as an option) ->
 // rounds of (projection steps with the 55 degree contact stop, tangential
@@ -27,9 +27,9 @@
 #include "isk/cl/runtime.hpp"
 #include "isk/cl/skinning.hpp"
 #include "isk/cl/surface_tracking.hpp"
-#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/fields/implicit_fields.hpp"
 #include "isk/rig/rig.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
 #include "isk/tracking/surface_tracking.hpp"
 
 namespace isk {

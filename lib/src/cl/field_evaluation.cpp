@@ -478,9 +478,8 @@ void ClFieldEvaluation::setPose(const TransformList& skinning) {
       context_->queue().enqueueWriteBuffer(pair_angles_, CL_TRUE, 0,
                                            pair_count_ * sizeof(float),
                                            pair_angles_staging_.data());
-    upload_ms_ = context_->profilingEnabled()
-                     ? eventMilliseconds(write)
-                     : millisecondsSince(start);
+    upload_ms_ = context_->profilingEnabled() ? eventMilliseconds(write)
+                                              : millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, "ClFieldEvaluation::setPose");
   }
@@ -540,9 +539,8 @@ void ClFieldEvaluation::evaluate(const TransformList& skinning,
         cl::NDRange(roundUp(static_cast<size_t>(point_count), 64)),
         cl::NullRange, nullptr, &run);
     run.wait();
-    kernel_ms_ = context_->profilingEnabled()
-                     ? eventMilliseconds(run)
-                     : millisecondsSince(start);
+    kernel_ms_ = context_->profilingEnabled() ? eventMilliseconds(run)
+                                              : millisecondsSince(start);
   } catch (const cl::Error& e) {
     throwClError(e, std::string("ClFieldEvaluation::evaluate (") +
                         fieldStorageName(storage_) + ", " +

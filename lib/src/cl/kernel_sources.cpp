@@ -22,9 +22,9 @@ std::string embeddedKernelSource(const std::string& kernel_file) {
     if (source.name == kernel_file) return std::string(source.text);
   }
   const bool header = kernel_file.find('.') != std::string::npos;
-  throw Error(ErrorCode::kInvalidArgument,
-              "no embedded kernel file '" + kernel_file +
-                  (header ? "'" : ".cl'"));
+  throw Error(
+      ErrorCode::kInvalidArgument,
+      "no embedded kernel file '" + kernel_file + (header ? "'" : ".cl'"));
 }
 
 }  // namespace isk

@@ -4,8 +4,8 @@
 #include <string>
 
 #include "isk/core/error.hpp"
-#include "isk/core/vertex_normals.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/core/vertex_normals.hpp"
 
 namespace isk {
 namespace {

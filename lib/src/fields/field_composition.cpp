@@ -156,9 +156,8 @@ Composition buildComposition(const Skeleton& skeleton,
     const auto report = [&](float f) {
       if (progress) progress((t + f) / kinds.size());
     };
-    out.tables.push_back(
-        sharedOperatorTable(kinds[t], options.table_resolution, report,
-                            &out.warnings));
+    out.tables.push_back(sharedOperatorTable(kinds[t], options.table_resolution,
+                                             report, &out.warnings));
   }
   for (int k : out.blended_pairs) {
     FieldPair& p = out.pairs[k];

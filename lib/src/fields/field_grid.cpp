@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "isk/core/error.hpp"
 #include "fields/trilinear.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 

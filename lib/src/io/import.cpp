@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "io/child_process.hpp"
-#include "isk/core/error.hpp"
 #include "io/rig_serialization.hpp"
+#include "isk/core/error.hpp"
 
 namespace isk {
 namespace {

@@ -18,7 +18,6 @@ namespace isk {
 
 namespace {
 
-
 // Rest normals closer than this share a smoothed normal across a seam.
 constexpr float kSameNormalCos = 0.99f;
 
@@ -32,8 +31,7 @@ constexpr float kSameNormalCos = 0.99f;
 // clamped to +-max_step.
 Eigen::Vector3f newtonStep(const Eigen::Vector3f& x,
                            const Eigen::Vector3f& unit, float value_gap,
-                           float gradient_length, float sigma,
-                           float max_step) {
+                           float gradient_length, float sigma, float max_step) {
   const float length =
       std::clamp(sigma * value_gap / gradient_length, -max_step, max_step);
   return x + length * unit;
@@ -43,8 +41,7 @@ Eigen::Vector3f newtonStep(const Eigen::Vector3f& x,
 // contact angle (cos_contact) since the vertex's last plain step.
 bool contactStop(const Eigen::Vector3f& unit, const Eigen::Vector4f& prev,
                  float cos_contact) {
-  return prev[3] == ISK_GRADIENT_STEP &&
-         unit.dot(prev.head<3>()) < cos_contact;
+  return prev[3] == ISK_GRADIENT_STEP && unit.dot(prev.head<3>()) < cos_contact;
 }
 
 // The contact by home field: a vertex that another part's field has

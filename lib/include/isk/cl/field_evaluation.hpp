@@ -54,9 +54,9 @@
 #include <vector>
 
 #include "isk/cl/runtime.hpp"
+#include "isk/core/types.hpp"
 #include "isk/fields/field_evaluation.hpp"
 #include "isk/fields/field_grid.hpp"
-#include "isk/core/types.hpp"
 
 namespace isk {
 

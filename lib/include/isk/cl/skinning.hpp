@@ -5,8 +5,8 @@
 // the skinning kernel (LBS or DQS) and the normals kernel, and leaves the
 // results in device buffers (read them back, or hand the buffers to your
 // renderer). Results match the CPU reference (isk/skinning/skinning.hpp and
-// isk/core/vertex_normals.hpp, together in isk/skinning/cpu_skinning.hpp) up to float
-// rounding.
+// isk/core/vertex_normals.hpp, together in isk/skinning/cpu_skinning.hpp) up to
+// float rounding.
 #pragma once
 
 #include <memory>
@@ -14,9 +14,9 @@
 
 #include "isk/cl/runtime.hpp"
 #include "isk/core/mesh.hpp"
+#include "isk/core/types.hpp"
 #include "isk/rig/skin_weights.hpp"
 #include "isk/skinning/skinning.hpp"
-#include "isk/core/types.hpp"
 
 namespace isk {
 

@@ -28,10 +28,10 @@
 #include <string>
 #include <vector>
 
+#include "isk/core/types.hpp"
 #include "isk/fields/bone_partition.hpp"
 #include "isk/fields/bone_samples.hpp"
 #include "isk/fields/hrbf.hpp"
-#include "isk/core/types.hpp"
 
 namespace isk {
 

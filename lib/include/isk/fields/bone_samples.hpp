@@ -21,9 +21,9 @@
 
 #include <vector>
 
+#include "isk/core/mesh.hpp"
 #include "isk/fields/bone_partition.hpp"
 #include "isk/fields/hrbf.hpp"
-#include "isk/core/mesh.hpp"
 
 namespace isk {
 

@@ -1,7 +1,7 @@
 // The global field of a character (Vaillant et al. 2013, section 4.2,
 // eq. 3): each joint combines the fields of its two bones with the operator
-// chosen for it (isk/fields/composition_operator.hpp), and the global field is the
-// max of every joint's composition and of every field.
+// chosen for it (isk/fields/composition_operator.hpp), and the global field is
+// the max of every joint's composition and of every field.
 //
 // Joint pairs: the joint j whose bone has a field pairs that field with the
 // field of its nearest ancestor that has one (the bone that ends at j: the

@@ -4,8 +4,8 @@
 //
 // A field follows its joint rigidly: a posed point x is taken back to the
 // field's bone frame by (skinning[joint] * bone_to_model)^-1 and sampled
-// there (isk/fields/field_grid.hpp); its gradient comes back to model space by the
-// transpose of that inverse's linear part (the rotation for a rigid pose).
+// there (isk/fields/field_grid.hpp); its gradient comes back to model space by
+// the transpose of that inverse's linear part (the rotation for a rigid pose).
 //
 // Composition (isk/fields/field_composition.hpp): the max of every field and of
 // every blend or bulge pair of the character's Composition; without one, the
@@ -16,10 +16,10 @@
 
 #include <vector>
 
-#include "isk/fields/field_composition.hpp"
-#include "isk/fields/field_grid.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/validation.hpp"
+#include "isk/fields/field_composition.hpp"
+#include "isk/fields/field_grid.hpp"
 
 namespace isk {
 

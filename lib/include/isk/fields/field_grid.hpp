@@ -12,8 +12,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "isk/fields/bone_field.hpp"
 #include "isk/core/types.hpp"
+#include "isk/fields/bone_field.hpp"
 
 namespace isk {
 

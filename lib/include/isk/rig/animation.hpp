@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "isk/rig/skeleton.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/validation.hpp"
+#include "isk/rig/skeleton.hpp"
 
 namespace isk {
 

@@ -1,8 +1,8 @@
 // From local joint transforms to the skinning transforms the kernels use.
 #pragma once
 
-#include "isk/rig/skeleton.hpp"
 #include "isk/core/types.hpp"
+#include "isk/rig/skeleton.hpp"
 
 namespace isk {
 

@@ -4,11 +4,11 @@
 #include <string>
 #include <vector>
 
-#include "isk/rig/animation.hpp"
 #include "isk/core/mesh.hpp"
+#include "isk/core/validation.hpp"
+#include "isk/rig/animation.hpp"
 #include "isk/rig/skeleton.hpp"
 #include "isk/rig/skin_weights.hpp"
-#include "isk/core/validation.hpp"
 
 namespace isk {
 

@@ -7,10 +7,10 @@
 #pragma once
 
 #include "isk/core/mesh.hpp"
-#include "isk/rig/skin_weights.hpp"
-#include "isk/skinning/skinning.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/vertex_normals.hpp"
+#include "isk/rig/skin_weights.hpp"
+#include "isk/skinning/skinning.hpp"
 
 namespace isk {
 

@@ -13,9 +13,9 @@
 
 #include <string>
 
-#include "isk/rig/skin_weights.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/validation.hpp"
+#include "isk/rig/skin_weights.hpp"
 
 namespace isk {
 
