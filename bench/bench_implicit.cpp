@@ -326,10 +326,9 @@ void dqsOpenCl(benchmark::State& state, const Case& c, int device) {
 // frame (as dqs:<d>) of the same pose in turn, which goes first
 // alternating, so that implicit / DQS comes from frames timed side by side:
 // the separate benchmarks run minutes apart on a shared machine whose speed
-// drifts (their ratio moved from 9.6x to 11.3x between two runs of the same
-// code). Counters: implicit_ms and dqs_ms (wall time of one frame with its
-// read-backs, means over the iterations) and implicit_over_dqs, their
-// ratio.
+// drifts, so their ratio moves between runs of the same code. Counters:
+// implicit_ms and dqs_ms (wall time of one frame with its read-backs, means
+// over the iterations) and implicit_over_dqs, their ratio.
 void implicitPairedWithDqs(benchmark::State& state, const Case& c, int device) {
   const Rig& rig = c.rig();
   ImplicitSkinner implicit(context(device), rig, implicitFieldsOf(c),

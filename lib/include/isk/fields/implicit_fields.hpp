@@ -118,7 +118,7 @@ Validation fieldsFitRig(const ImplicitFields& fields, const Rig& rig);
 // 2 bytes per channel instead of 4) and takes the iso values and the
 // outside vertices again from the rounded grids, so that the rest pose
 // still lies on its iso-surfaces. The frames move by a small fraction of
-// the mesh's size (README, Benchmarks). Throws what roundGridsToHalf throws,
+// the mesh's size (docs/performance.md). Throws what roundGridsToHalf throws,
 // and isk::Error(kInvalidArgument) when `fields` do not fit `rig`'s mesh;
 // `fields` are unchanged then. Does nothing to fields already in half.
 void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig);
