@@ -10,6 +10,7 @@
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
 #include "skinner_fields.hpp"
+#include "usability.hpp"
 
 namespace isk {
 
@@ -329,12 +330,8 @@ ImplicitCrowd& ImplicitCrowd::operator=(ImplicitCrowd&&) noexcept = default;
 
 ImplicitCrowd::State& ImplicitCrowd::state(const char* what,
                                            bool needs_run) const {
-  if (!state_)
-    invalid(std::string("ImplicitCrowd::") + what +
-            ": the crowd was moved from (it holds no rig)");
-  if (needs_run && !state_->pipeline->has_run)
-    invalid(std::string("ImplicitCrowd::") + what +
-            " before run(): there is no frame yet");
+  detail::checkUsable("ImplicitCrowd", "crowd", what, state_ != nullptr,
+                      needs_run, state_ && state_->pipeline->has_run);
   return *state_;
 }
 

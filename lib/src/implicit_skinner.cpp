@@ -7,6 +7,7 @@
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
 #include "skinner_fields.hpp"
+#include "usability.hpp"
 
 namespace isk {
 
@@ -59,14 +60,8 @@ ImplicitSkinner& ImplicitSkinner::operator=(ImplicitSkinner&&) noexcept =
 
 detail::DeviceFramePipeline& ImplicitSkinner::usable(const char* what,
                                                      bool needs_run) const {
-  if (!pipeline_)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("ImplicitSkinner::") + what +
-                    ": the skinner was moved from (it holds no rig)");
-  if (needs_run && !pipeline_->has_run)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("ImplicitSkinner::") + what +
-                    " before run(): there is no frame yet");
+  detail::checkUsable("ImplicitSkinner", "skinner", what, pipeline_ != nullptr,
+                      needs_run, pipeline_ && pipeline_->has_run);
   return *pipeline_;
 }
 
@@ -134,14 +129,8 @@ CpuImplicitSkinner::CpuImplicitSkinner(
 }
 
 void CpuImplicitSkinner::checkUsable(const char* what, bool needs_run) const {
-  if (!tracking_)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("CpuImplicitSkinner::") + what +
-                    ": the skinner was moved from (it holds no rig)");
-  if (needs_run && !has_run_)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("CpuImplicitSkinner::") + what +
-                    " before run(): there is no frame yet");
+  detail::checkUsable("CpuImplicitSkinner", "skinner", what,
+                      tracking_ != nullptr, needs_run, has_run_);
 }
 
 void CpuImplicitSkinner::run(const TransformList& skinning) {

@@ -23,6 +23,7 @@
 #include "isk/skinning/skinning.hpp"
 #include "isk/tools/procedural.hpp"
 #include "test_support.hpp"
+#include "tracking/tracking_test_access.hpp"
 
 namespace isk {
 namespace {
@@ -334,7 +335,10 @@ TEST(ApiMisuse, ResultsBeforeTheFirstFrameAndStagesBeforeBeginAreRefused) {
       {"CpuSurfaceTracking::finish", [&] { cpu_implicit.tracking().finish(); },
        before_begin},
       {"CpuSurfaceTracking::setState",
-       [&] { cpu_implicit.tracking().setState(positions, states, gradients); },
+       [&] {
+         detail::TrackingTestAccess::setState(cpu_implicit.tracking(),
+                                              positions, states, gradients);
+       },
        before_begin},
       {"ClSurfaceTracking::project", [&] { cl_implicit.tracking().project(2); },
        before_begin},
@@ -345,7 +349,10 @@ TEST(ApiMisuse, ResultsBeforeTheFirstFrameAndStagesBeforeBeginAreRefused) {
       {"ClSurfaceTracking::finish", [&] { cl_implicit.tracking().finish(); },
        before_begin},
       {"ClSurfaceTracking::setState",
-       [&] { cl_implicit.tracking().setState(positions, states, gradients); },
+       [&] {
+         detail::TrackingTestAccess::setState(cl_implicit.tracking(), positions,
+                                              states, gradients);
+       },
        before_begin},
       {"ClSurfaceTracking::readPositions",
        [&] { cl_implicit.tracking().readPositions(out); }, before_begin},

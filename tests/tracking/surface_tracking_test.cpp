@@ -26,6 +26,7 @@
 #include "isk/tools/procedural.hpp"
 #include "isk/tools/self_intersection.hpp"
 #include "test_support.hpp"
+#include "tracking/tracking_test_access.hpp"
 #include "tracking/tracking_tuning.hpp"
 
 namespace isk {
@@ -810,7 +811,8 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   for (int round = 0; round < options.rounds; ++round) {
     // Both from the reference's state (chained: each from its own).
     if (!chained)
-      cl.setState(cpu.positions(), cpu.states(), cpu.previousGradients());
+      detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
+                                           cpu.previousGradients());
     cpu.project(options.projection_steps);
     cl.project(options.projection_steps);
     compare("projection");
@@ -831,14 +833,16 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
             frame_error, (frames.row(v) - cpu.relaxFrames().row(v)).norm());
     if (!chained) EXPECT_LT(frame_error, 1e-3f) << "relaxation frames";
     if (!chained)
-      cl.setState(cpu.positions(), cpu.states(), cpu.previousGradients(),
-                  &cpu.relaxFrames());
+      detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
+                                           cpu.previousGradients(),
+                                           &cpu.relaxFrames());
     cpu.relax();
     cl.relax();
     compare("relaxation");
   }
   if (!chained)
-    cl.setState(cpu.positions(), cpu.states(), cpu.previousGradients());
+    detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
+                                         cpu.previousGradients());
   cpu.smooth();
   cl.smooth();
   compare("smoothing");
@@ -849,7 +853,8 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     ASSERT_NEAR(beta[i], cpu.beta()[i], chained ? 1.f : 1e-5f)
         << "beta entry " << i;
   if (!chained)
-    cl.setState(cpu.positions(), cpu.states(), cpu.previousGradients());
+    detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
+                                         cpu.previousGradients());
   cpu.finish();
   cl.finish();
   compare("finish");

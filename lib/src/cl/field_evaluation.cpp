@@ -10,6 +10,7 @@
 #include <string>
 
 #include "cl/abi_checks.hpp"
+#include "cl/device_buffers.hpp"
 #include "cl/field_groups.hpp"
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
@@ -19,9 +20,8 @@ namespace {
 
 constexpr size_t kFloat4 = 4 * sizeof(float);
 
-size_t roundUp(size_t n, size_t multiple) {
-  return (n + multiple - 1) / multiple * multiple;
-}
+using detail::roundUp;
+using detail::uploadReadOnly;
 
 using detail::invalid;
 
@@ -125,7 +125,6 @@ ClFieldEvaluation::ClFieldEvaluation(std::shared_ptr<ClContext> context,
 
 void ClFieldEvaluation::uploadFields(const detail::MergedFieldGroups& merged) {
   const std::vector<const FieldGrid*>& stored = merged.stored;
-  const cl::Context& ctx = context_->context();
   try {
     cl::Program program = context_->program("fields/evaluate", buildOptions());
     kernel_ = cl::Kernel(program, "evaluate_fields");
@@ -141,13 +140,12 @@ void ClFieldEvaluation::uploadFields(const detail::MergedFieldGroups& merged) {
       cells.insert(cells.end(), bounds.begin(), bounds.end());
     }
     if (cells.empty()) cells.push_back(0);  // a valid buffer
-    cells_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                        cells.size(), cells.data());
+    cells_ = uploadReadOnly(*context_, cells, "ClFieldEvaluation: cell bounds");
     cell_bytes_ = cells.size();
-    params_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                         params_staging_.size() * sizeof(float),
-                         params_staging_.data());
-    dummy_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, kFloat4);
+    params_ = uploadReadOnly(*context_, params_staging_,
+                             "ClFieldEvaluation: field parameters");
+    dummy_ = context_->createBuffer(CL_MEM_READ_WRITE, kFloat4, nullptr,
+                                    "ClFieldEvaluation: placeholder");
     composed_ = dummy_;
     per_field_ = dummy_;
   } catch (const cl::Error& e) {
@@ -352,15 +350,12 @@ void ClFieldEvaluation::uploadComposition(const Composition* composition) {
       pairs[4 * k + 3] = p.controller * kControllerSamples;
     }
   }
-  pairs_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                      pairs.size() * sizeof(cl_int), pairs.data());
+  pairs_ = uploadReadOnly(*context_, pairs, "ClFieldEvaluation: pairs");
   pair_angles_staging_.assign(std::max(pair_count_, 1), 0.f);
-  pair_angles_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                            pair_angles_staging_.size() * sizeof(float),
-                            pair_angles_staging_.data());
+  pair_angles_ = uploadReadOnly(*context_, pair_angles_staging_,
+                                "ClFieldEvaluation: pair angles");
   controllers_ =
-      cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                 controllers.size() * sizeof(float), controllers.data());
+      uploadReadOnly(*context_, controllers, "ClFieldEvaluation: controllers");
   composition_bytes_ = pairs.size() * sizeof(cl_int) +
                        controllers.size() * sizeof(float) +
                        pair_angles_staging_.size() * sizeof(float);
@@ -380,8 +375,8 @@ void ClFieldEvaluation::uploadComposition(const Composition* composition) {
                     cl::ImageFormat(CL_RGBA, CL_FLOAT), n, n,
                     n * std::max(table_count_, 1), 0, 0, nodes.data());
   else
-    operator_nodes_ = cl::Buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                                 nodes.size() * sizeof(float), nodes.data());
+    operator_nodes_ =
+        uploadReadOnly(*context_, nodes, "ClFieldEvaluation: operator tables");
   operator_bytes_ = nodes.size() * sizeof(float);
 }
 

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <string>
 
+#include "cl/device_buffers.hpp"
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
 #include "isk/core/vertex_normals.hpp"
@@ -10,18 +11,13 @@
 namespace isk {
 namespace {
 
-size_t roundUp(size_t n, size_t multiple) {
-  return (n + multiple - 1) / multiple * multiple;
-}
+using detail::roundUp;
 
 template <typename T>
 cl::Buffer uploadReadOnly(const ClContext& context, const std::vector<T>& data,
                           const char* what) {
-  // A zero-sized buffer is invalid in OpenCL: keep one element at least.
-  std::vector<T> padded = data.empty() ? std::vector<T>(1) : data;
-  return context.createBuffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                              padded.size() * sizeof(T), padded.data(),
-                              std::string("ClSkinning ") + what);
+  return detail::uploadReadOnly(context, data,
+                                std::string("ClSkinning ") + what);
 }
 
 }  // namespace

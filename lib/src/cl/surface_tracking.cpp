@@ -8,10 +8,12 @@
 #include <type_traits>
 
 #include "cl/abi_checks.hpp"
+#include "cl/device_buffers.hpp"
 #include "cl/tracking_layout.hpp"
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
 #include "tracking/tracking_tuning.hpp"
+#include "usability.hpp"
 
 namespace isk {
 namespace {
@@ -23,26 +25,20 @@ constexpr int kLaneWidth = ISK_LANE_WIDTH;
 constexpr size_t kLaneFloats = ISK_LANE_ROWS * kLaneWidth;
 static_assert(kLaneWidth == 8, "a lane mask is one byte");
 
-size_t roundUp(size_t n, size_t multiple) {
-  return (n + multiple - 1) / multiple * multiple;
-}
+using detail::roundUp;
+
+constexpr const char* kTrackingMesh = "ClSurfaceTracking: the tracking mesh";
 
 template <typename T>
 cl::Buffer uploadReadOnly(const ClContext& context, const T* data, size_t count,
                           size_t* bytes) {
-  // A zero-sized buffer is invalid in OpenCL: keep one element at least.
-  std::vector<T> padded(data, data + count);
-  if (padded.empty()) padded.resize(1);
-  *bytes += padded.size() * sizeof(T);
-  return context.createBuffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                              padded.size() * sizeof(T), padded.data(),
-                              "ClSurfaceTracking: the tracking mesh");
+  return detail::uploadReadOnly(context, data, count, kTrackingMesh, bytes);
 }
 
 template <typename T>
 cl::Buffer uploadReadOnly(const ClContext& context, const std::vector<T>& v,
                           size_t* bytes) {
-  return uploadReadOnly(context, v.data(), v.size(), bytes);
+  return detail::uploadReadOnly(context, v, kTrackingMesh, bytes);
 }
 
 }  // namespace
@@ -411,11 +407,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
 }
 
 void ClSurfaceTracking::checkBegun(const char* stage) const {
-  if (!begun_)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("ClSurfaceTracking::") + stage +
-                    " before begin(): no frame has been started (no pose, "
-                    "no positions)");
+  detail::checkBegun("ClSurfaceTracking", stage, begun_);
 }
 
 void ClSurfaceTracking::project(int steps) {

@@ -13,6 +13,7 @@
 #include "isk/core/stopwatch.hpp"
 #include "isk/tools/mesh_metrics.hpp"
 #include "tracking/tracking_tuning.hpp"
+#include "usability.hpp"
 
 namespace isk {
 
@@ -723,11 +724,7 @@ CpuSurfaceTracking::CpuSurfaceTracking(const FieldGridSet& fields,
 }
 
 void CpuSurfaceTracking::checkBegun(const char* stage) const {
-  if (!begun_)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("CpuSurfaceTracking::") + stage +
-                    " before begin(): no frame has been started (no pose, "
-                    "no positions)");
+  detail::checkBegun("CpuSurfaceTracking", stage, begun_);
 }
 
 void CpuSurfaceTracking::begin(const TransformList& skinning,

@@ -58,15 +58,6 @@ class ClSurfaceTracking {
   void run(const TransformList& skinning, const cl::Buffer& skinned_positions,
            const cl::Buffer& skinned_normals);
 
-  // Uploads a working state (tests: both backends from the same input),
-  // after a begin() that set the pose. Throws isk::Error(kInvalidArgument)
-  // unless every size is #V.
-  // relax_frames (optional, #V by 4): see CpuSurfaceTracking::relaxFrames.
-  void setState(const Matrix3Xf& positions,
-                const std::vector<TrackState>& states,
-                const Matrix4Xf& prev_gradients,
-                const Matrix4Xf* relax_frames = nullptr);
-
   // Blocking reads of the working state and of the results.
   void readPositions(Matrix3Xf& out);  // working positions (results after
                                        // finish())
@@ -92,6 +83,14 @@ class ClSurfaceTracking {
   size_t bytes() const { return bytes_; }
 
  private:
+  // Uploads a working state (the tests, through detail::TrackingTestAccess:
+  // both backends from the same input).
+  friend struct detail::TrackingTestAccess;
+  void setState(const Matrix3Xf& positions,
+                const std::vector<TrackState>& states,
+                const Matrix4Xf& prev_gradients,
+                const Matrix4Xf* relax_frames = nullptr);
+
   enum Stage { kProjection, kRelaxation, kSmoothing, kNormals };
   // Over `items` work-items (-1: one per vertex).
   void launch(cl::Kernel& kernel, Stage stage, int items = -1);

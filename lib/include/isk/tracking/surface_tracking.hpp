@@ -77,7 +77,8 @@
 namespace isk {
 
 namespace detail {
-struct TrackingTuning;  // lib/src/tracking/tracking_tuning.hpp
+struct TrackingTuning;      // lib/src/tracking/tracking_tuning.hpp
+struct TrackingTestAccess;  // lib/src/tracking/tracking_test_access.hpp
 }  // namespace detail
 
 // The parameters of tracking (above); the defaults are the paper's values
@@ -337,14 +338,6 @@ class CpuSurfaceTracking {
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
            const Matrix3Xf& skinned_normals);
 
-  // Replaces the working state (tests: both backends from the same input).
-  // prev_gradients: #V by 4, xyz the previous step's unit gradient, w 1 when
-  // set. Throws isk::Error(kInvalidArgument) unless every size is #V.
-  void setState(const Matrix3Xf& positions,
-                const std::vector<TrackState>& states,
-                const Matrix4Xf& prev_gradients,
-                const Matrix4Xf* relax_frames = nullptr);
-
   // The working state: #V by 3 positions and normals (model space, normals
   // of unit length after finish()), #V states.
   const Matrix3Xf& positions() const { return positions_; }
@@ -363,6 +356,14 @@ class CpuSurfaceTracking {
   const SurfaceTrackingOptions& options() const { return options_; }
 
  private:
+  // Replaces the working state (the tests, through
+  // detail::TrackingTestAccess: both backends from the same input).
+  friend struct detail::TrackingTestAccess;
+  void setState(const Matrix3Xf& positions,
+                const std::vector<TrackState>& states,
+                const Matrix4Xf& prev_gradients,
+                const Matrix4Xf* relax_frames = nullptr);
+
   const FieldGridSet* fields_;
   const Composition* composition_;
   const TrackingMesh* mesh_;
