@@ -39,8 +39,8 @@ class ClSurfaceTracking {
                     const SurfaceTrackingOptions& options = {});
 
   // Stage by stage, as CpuSurfaceTracking (enqueued, not waited for). The
-  // other stages, setState() and the reads throw isk::Error
-  // (kInvalidArgument) before the first begin().
+  // other stages and the reads throw isk::Error(kInvalidArgument) before the
+  // first begin().
   // begin: the frame's pose (#joints) and the skinned positions and normals
   // on the device (#V * 3 packed floats each; normals are the fallback of
   // the normals stage).

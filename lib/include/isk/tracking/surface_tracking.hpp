@@ -325,8 +325,8 @@ class CpuSurfaceTracking {
   // begin: the frame's pose (#joints skinning transforms) and the skinned
   // positions (#V by 3) and normals (fallback of the normals stage).
   // Throws isk::Error(kInvalidArgument) for sizes that do not match the
-  // mesh or a pose shorter than the fields' joints. The other stages and
-  // setState() throw isk::Error(kInvalidArgument) before the first begin().
+  // mesh or a pose shorter than the fields' joints. The other stages throw
+  // isk::Error(kInvalidArgument) before the first begin().
   void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
              const Matrix3Xf& skinned_normals);
   void project(int steps);  // `steps` projection steps (eq. 4)
