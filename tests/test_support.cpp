@@ -90,6 +90,20 @@ std::shared_ptr<ClContext> sharedContext() {
   return context;
 }
 
+Matrix3Xf positionsOf(const std::vector<Eigen::Vector3f>& points) {
+  Matrix3Xf positions(static_cast<int>(points.size()), 3);
+  for (size_t v = 0; v < points.size(); ++v)
+    positions.row(v) = points[v].transpose();
+  return positions;
+}
+
+TriangleMatrix trianglesOf(const std::vector<Eigen::Vector3i>& corners) {
+  TriangleMatrix triangles(static_cast<int>(corners.size()), 3);
+  for (size_t f = 0; f < corners.size(); ++f)
+    triangles.row(f) = corners[f].transpose();
+  return triangles;
+}
+
 RowMismatch largestRowDistance(const Matrix3Xf& a, const Matrix3Xf& b) {
   RowMismatch result;
   if (a.rows() != b.rows()) {

@@ -48,6 +48,10 @@ std::string missingAssetsMessage(const std::string& what);
 // device ClContext::create("") picks (PoCL in CI).
 std::shared_ptr<ClContext> sharedContext();
 
+// #V by 3 positions and #F by 3 triangles of hand-built meshes.
+Matrix3Xf positionsOf(const std::vector<Eigen::Vector3f>& points);
+TriangleMatrix trianglesOf(const std::vector<Eigen::Vector3i>& corners);
+
 // Largest row distance between a and b, and the row where it occurs.
 struct RowMismatch {
   float distance = 0.f;

@@ -1,12 +1,16 @@
-// Self-intersection counts: hand-made pairs (crossing, adjacent, coplanar,
-// touching, seam duplicates), the exact triangle test against separating axes
-// on grid triangles, the hierarchy against all pairs on jittered cylinders,
-// the procedural rigs at rest and a cylinder bent by linear blend skinning,
-// and bad input.
+// Self-intersection counts: hand-made pairs (crossing, coplanar, touching,
+// seam duplicates) and, for each adjacency class of CGAL's definition, pairs
+// with known answers (sharing an edge, a vertex, a whole face; a flipped fan;
+// degenerate triangles), the exact triangle test against separating axes on
+// grid triangles, the hierarchy against all pairs on jittered cylinders, the
+// procedural rigs at rest and a cylinder bent by linear blend skinning, the
+// pairs new against the rest pose, and bad input. CGAL itself is the
+// reference in self_intersection_cgal_test.cpp.
 #include "isk/tools/self_intersection.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -18,25 +22,15 @@
 #include "isk/rig/pose.hpp"
 #include "isk/skinning/cpu_skinning.hpp"
 #include "isk/tools/procedural.hpp"
+#include "test_support.hpp"
 
 namespace isk {
 namespace {
 
+using test::positionsOf;
+using test::trianglesOf;
+
 using Pairs = std::vector<std::pair<int, int>>;
-
-Matrix3Xf positionsOf(const std::vector<Eigen::Vector3f>& points) {
-  Matrix3Xf positions(static_cast<int>(points.size()), 3);
-  for (size_t v = 0; v < points.size(); ++v)
-    positions.row(v) = points[v].transpose();
-  return positions;
-}
-
-TriangleMatrix trianglesOf(const std::vector<Eigen::Vector3i>& corners) {
-  TriangleMatrix triangles(static_cast<int>(corners.size()), 3);
-  for (size_t f = 0; f < corners.size(); ++f)
-    triangles.row(f) = corners[f].transpose();
-  return triangles;
-}
 
 // Two triangles of six separate vertices (no shared index).
 int countPair(const std::vector<Eigen::Vector3f>& six) {
@@ -78,14 +72,25 @@ TEST(SelfIntersection, CrossingTrianglesCountOnce) {
   EXPECT_EQ(pairs, (Pairs{{0, 2}}));
 }
 
-TEST(SelfIntersection, AdjacentTrianglesFoldedThroughEachOtherDoNotCount) {
+// The pairs of a mesh, sorted.
+Pairs pairsOf(const std::vector<Eigen::Vector3f>& points,
+              const std::vector<Eigen::Vector3i>& corners,
+              const std::vector<int>* groups = nullptr) {
+  Pairs pairs;
+  countSelfIntersections(positionsOf(points), trianglesOf(corners), groups,
+                         &pairs);
+  return pairs;
+}
+
+// Adjacent triangles folded through each other count (CGAL's definition);
+// the same geometry without the shared index counts too (touching).
+TEST(SelfIntersection, AdjacentTrianglesFoldedThroughEachOtherCount) {
   // Sharing vertex 0, the second triangle pierces the first's interior.
   const std::vector<Eigen::Vector3f> vertex_fold = {
       {0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {1, 0.5f, 1}, {1, 0.5f, -1}};
   EXPECT_EQ(countSelfIntersections(positionsOf(vertex_fold),
                                    trianglesOf({{0, 1, 2}, {0, 3, 4}})),
-            0);
-  // The same geometry without the shared index does intersect.
+            1);
   EXPECT_EQ(countPair({vertex_fold[0], vertex_fold[1], vertex_fold[2],
                        vertex_fold[0], vertex_fold[3], vertex_fold[4]}),
             1);
@@ -94,10 +99,131 @@ TEST(SelfIntersection, AdjacentTrianglesFoldedThroughEachOtherDoNotCount) {
       {0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {1, 1, 0}};
   EXPECT_EQ(countSelfIntersections(positionsOf(edge_fold),
                                    trianglesOf({{0, 1, 2}, {0, 1, 3}})),
-            0);
+            1);
   EXPECT_EQ(countPair({edge_fold[0], edge_fold[1], edge_fold[2], edge_fold[0],
                        edge_fold[1], edge_fold[3]}),
             1);
+}
+
+// Sharing an edge: only an exactly flat fold (coplanar, both opposite
+// vertices on one side of the edge) counts, as in CGAL.
+TEST(SelfIntersection, EdgeNeighboursCountOnlyFoldedFlat) {
+  const std::vector<Eigen::Vector3i> two = {{0, 1, 2}, {1, 0, 3}};
+  // Flat and unfolded: 3 on the other side of edge 0-1.
+  EXPECT_EQ(pairsOf({{0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {1, -2, 0}}, two),
+            Pairs{});
+  // Folded flat: 3 on 2's side, inside the first triangle or beyond it.
+  EXPECT_EQ(pairsOf({{0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {1, 1, 0}}, two),
+            (Pairs{{0, 1}}));
+  EXPECT_EQ(pairsOf({{0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {5, 7, 0}}, two),
+            (Pairs{{0, 1}}));
+  // Tilted plane x + y + z = 2, folded flat.
+  EXPECT_EQ(pairsOf({{2, 0, 0}, {0, 2, 0}, {0, 0, 2}, {1, 0, 1}}, two),
+            (Pairs{{0, 1}}));
+  // A sharp fold that is not flat: 3 lifted by the smallest float step. The
+  // triangles overlap in all but a sliver, yet CGAL does not count them.
+  const float lift = std::nextafter(0.f, 1.f);
+  EXPECT_EQ(pairsOf({{0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {1, 1, lift}}, two),
+            Pairs{});
+  EXPECT_EQ(pairsOf({{0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {1, 1, 0.5f}}, two),
+            Pairs{});
+}
+
+// Sharing one vertex: counted iff the edge of either triangle opposite that
+// vertex meets the other triangle.
+TEST(SelfIntersection, VertexNeighboursCountWhenAnOppositeEdgeMeetsTheOther) {
+  const std::vector<Eigen::Vector3i> two = {{0, 1, 2}, {0, 3, 4}};
+  const Eigen::Vector3f o(0, 0, 0), x(2, 0, 0), y(0, 2, 0);
+  // Edge 3-4 pierces the first triangle.
+  EXPECT_EQ(pairsOf({o, x, y, {1, 0.5f, 1}, {1, 0.5f, -1}}, two),
+            (Pairs{{0, 1}}));
+  // The same edge beside it (crossing the plane at (1, -1), outside the
+  // first's wedge): apart, touching only at the shared vertex.
+  EXPECT_EQ(pairsOf({o, x, y, {1, -1, 1}, {1, -1, -1}}, two), Pairs{});
+  // Standing up from the shared vertex, above the plane: apart.
+  EXPECT_EQ(pairsOf({o, x, y, {1, 0.5f, 1}, {0.5f, 1, 1}}, two), Pairs{});
+  // Edge 3-4 ends on the first triangle's edge 1-2 (touching counts).
+  EXPECT_EQ(pairsOf({o, x, y, {1, 1, 0}, {1, 0.5f, 1}}, two), (Pairs{{0, 1}}));
+  // Coplanar: the second inside the first's wedge, short (its opposite edge
+  // lies in the first) or long (the first's opposite edge crosses it).
+  EXPECT_EQ(pairsOf({o, x, y, {1, 0.5f, 0}, {0.5f, 1, 0}}, two),
+            (Pairs{{0, 1}}));
+  EXPECT_EQ(pairsOf({o, x, y, {4, 2, 0}, {2, 4, 0}}, two), (Pairs{{0, 1}}));
+  // Coplanar, in the opposite wedge: apart.
+  EXPECT_EQ(pairsOf({o, x, y, {-1, -0.5f, 0}, {-0.5f, -1, 0}}, two), Pairs{});
+}
+
+// Seam duplicates welded by groups behave like shared vertices, at the
+// representative's position.
+TEST(SelfIntersection, WeldedSeamDuplicatesActAsSharedVertices) {
+  // Vertex 3 is a copy of 0 (vertex fold) or 4, 5 copies of 0, 1 (edge fold).
+  const std::vector<Eigen::Vector3f> vertex_apart = {
+      {0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 0}, {1, 0.5f, 1}, {0.5f, 1, 1}};
+  const std::vector<Eigen::Vector3i> vertex_two = {{0, 1, 2}, {3, 4, 5}};
+  const std::vector<int> vertex_groups = {0, 1, 2, 0, 4, 5};
+  EXPECT_EQ(coincidentVertexGroups(positionsOf(vertex_apart)), vertex_groups);
+  // Unwelded they touch at the vertex; welded they only share it.
+  EXPECT_EQ(pairsOf(vertex_apart, vertex_two), (Pairs{{0, 1}}));
+  EXPECT_EQ(pairsOf(vertex_apart, vertex_two, &vertex_groups), Pairs{});
+  // Welded and pierced.
+  std::vector<Eigen::Vector3f> vertex_pierced = vertex_apart;
+  vertex_pierced[5] = {1, 0.5f, -1};
+  EXPECT_EQ(pairsOf(vertex_pierced, vertex_two, &vertex_groups),
+            (Pairs{{0, 1}}));
+  // An edge seam folded flat counts welded; unfolded it counts only
+  // unwelded (touching along the edge).
+  const std::vector<Eigen::Vector3i> edge_two = {{0, 1, 2}, {5, 4, 3}};
+  const std::vector<int> edge_groups = {0, 1, 2, 3, 0, 1};
+  const std::vector<Eigen::Vector3f> folded = {{0, 0, 0}, {2, 0, 0}, {1, 2, 0},
+                                               {1, 1, 0}, {0, 0, 0}, {2, 0, 0}};
+  const std::vector<Eigen::Vector3f> unfolded = {
+      {0, 0, 0}, {2, 0, 0}, {1, 2, 0}, {1, -1, 0}, {0, 0, 0}, {2, 0, 0}};
+  EXPECT_EQ(pairsOf(folded, edge_two, &edge_groups), (Pairs{{0, 1}}));
+  EXPECT_EQ(pairsOf(unfolded, edge_two, &edge_groups), Pairs{});
+  EXPECT_EQ(pairsOf(unfolded, edge_two), (Pairs{{0, 1}}));
+  // The representative's position decides: copies 4, 5 posed elsewhere
+  // still weld onto 0, 1 (the second triangle is 1-0-3, folded flat).
+  std::vector<Eigen::Vector3f> moved = folded;
+  moved[4] = {9, 9, 9};
+  moved[5] = {8, 9, 9};
+  EXPECT_EQ(pairsOf(moved, edge_two, &edge_groups), (Pairs{{0, 1}}));
+  moved[3] = {1, -1, 0};
+  EXPECT_EQ(pairsOf(moved, edge_two, &edge_groups), Pairs{});
+}
+
+// A flat fan of six triangles around vertex 0 where ring vertex 1 is pulled
+// across the centre into triangle 3's sector: triangles 0 and 5, which use
+// it, fold over their neighbours (the spike of a bad deformation).
+TEST(SelfIntersection, FlippedTriangleInAFanCounts) {
+  std::vector<Eigen::Vector3f> points = {{0, 0, 0},  {2, 0, 0},  {1, 2, 0},
+                                         {-1, 2, 0}, {-2, 0, 0}, {-1, -2, 0},
+                                         {1, -2, 0}};
+  std::vector<Eigen::Vector3i> fan;
+  for (int k = 0; k < 6; ++k) fan.emplace_back(0, k + 1, (k + 1) % 6 + 1);
+  EXPECT_EQ(pairsOf(points, fan), Pairs{});
+  points[1] = {-1, -0.5f, 0};
+  // 0-1 and 4-5 folded flat over an edge neighbour; 0-2 (0's edge 1-2
+  // crosses 2), 0-3 and 3-5 (the moved vertex lies in 3) at the centre.
+  EXPECT_EQ(pairsOf(points, fan),
+            (Pairs{{0, 1}, {0, 2}, {0, 3}, {3, 5}, {4, 5}}));
+  // Not flat: vertex 2 lifted to z = 1, vertex 1 pulled below the plane
+  // (z = -1). Triangle 0's outer edge 1-2 now crosses z = 0 at (-0.5, 0.5),
+  // inside triangle 2, which shares only the centre with it; the sharp
+  // folds over the edges 0-2 and 0-1 do not count.
+  points[2] = {1, 2, 1};
+  points[1] = {-2, -1, -1};
+  EXPECT_EQ(pairsOf(points, fan), (Pairs{{0, 2}}));
+}
+
+// A face given twice (either orientation, or through seam copies) counts.
+TEST(SelfIntersection, DoubledFaceCounts) {
+  const std::vector<Eigen::Vector3f> points = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0},
+                                               {0, 0, 0}, {2, 0, 0}, {0, 2, 0}};
+  EXPECT_EQ(pairsOf(points, {{0, 1, 2}, {0, 2, 1}}), (Pairs{{0, 1}}));
+  EXPECT_EQ(pairsOf(points, {{0, 1, 2}, {1, 2, 0}}), (Pairs{{0, 1}}));
+  const std::vector<int> groups = {0, 1, 2, 0, 1, 2};
+  EXPECT_EQ(pairsOf(points, {{0, 1, 2}, {3, 5, 4}}, &groups), (Pairs{{0, 1}}));
+  EXPECT_EQ(pairsOf(points, {{0, 1, 2}, {3, 5, 4}}), (Pairs{{0, 1}}));
 }
 
 TEST(SelfIntersection, CoplanarOverlappingTrianglesCount) {
@@ -165,23 +291,67 @@ TEST(SelfIntersection, CoincidentVertexGroupsCompareBits) {
   EXPECT_TRUE(coincidentVertexGroups(Matrix3Xf(0, 3)).empty());
 }
 
-TEST(SelfIntersection, DegenerateTrianglesAreIgnored) {
+// Degenerate triangles take part in no pair and are counted apart.
+TEST(SelfIntersection, DegenerateTrianglesAreLeftOutAndCounted) {
+  int degenerate = -1;
   // A zero-area sliver (collinear corners) lying across a triangle.
-  EXPECT_EQ(countPair({{0, 0, 0},
-                       {2, 0, 0},
-                       {0, 2, 0},
-                       {-1, 0.5f, 0},
-                       {0.5f, 0.5f, 0},
-                       {3, 0.5f, 0}}),
-            0);
-  // A repeated index: a segment piercing the triangle.
   EXPECT_EQ(countSelfIntersections(positionsOf({{0, 0, 0},
                                                 {2, 0, 0},
                                                 {0, 2, 0},
-                                                {0.5f, 0.5f, -1},
-                                                {0.5f, 0.5f, 1}}),
-                                   trianglesOf({{0, 1, 2}, {3, 3, 4}})),
+                                                {-1, 0.5f, 0},
+                                                {0.5f, 0.5f, 0},
+                                                {3, 0.5f, 0}}),
+                                   trianglesOf({{0, 1, 2}, {3, 4, 5}}), nullptr,
+                                   nullptr, &degenerate),
             0);
+  EXPECT_EQ(degenerate, 1);
+  // A repeated index: a segment piercing the triangle.
+  const Matrix3Xf positions = positionsOf({{0, 0, 0},
+                                           {2, 0, 0},
+                                           {0, 2, 0},
+                                           {0.5f, 0.5f, -1},
+                                           {0.5f, 0.5f, 1},
+                                           {0.5f, 0.5f, 1}});
+  EXPECT_EQ(
+      countSelfIntersections(positions, trianglesOf({{0, 1, 2}, {3, 3, 4}}),
+                             nullptr, nullptr, &degenerate),
+      0);
+  EXPECT_EQ(degenerate, 1);
+  // Two corners welded into one: vertices 4 and 5 are one group, so
+  // triangle 3-4-5 collapses (it would pierce the first unwelded).
+  const std::vector<int> groups = {0, 1, 2, 3, 4, 4};
+  std::vector<std::pair<int, int>> pairs;
+  Matrix3Xf apart = positions;
+  apart.row(5) << 0.5f, 1.5f, 1;
+  const TriangleMatrix three = trianglesOf({{0, 1, 2}, {3, 4, 5}, {0, 3, 4}});
+  EXPECT_EQ(countSelfIntersections(apart, three, nullptr, &pairs, &degenerate),
+            2);
+  EXPECT_EQ(pairs, (Pairs{{0, 1}, {0, 2}}));
+  EXPECT_EQ(degenerate, 0);
+  EXPECT_EQ(countSelfIntersections(apart, three, &groups, &pairs, &degenerate),
+            1);
+  EXPECT_EQ(pairs, (Pairs{{0, 2}}));
+  EXPECT_EQ(degenerate, 1);
+  // All degenerate, and none at all.
+  EXPECT_EQ(countSelfIntersections(positions, trianglesOf({{3, 4, 5}}), nullptr,
+                                   nullptr, &degenerate),
+            0);
+  EXPECT_EQ(degenerate, 1);
+  EXPECT_EQ(countSelfIntersections(Matrix3Xf(0, 3), TriangleMatrix(0, 3),
+                                   nullptr, nullptr, &degenerate),
+            0);
+  EXPECT_EQ(degenerate, 0);
+}
+
+TEST(SelfIntersection, NewPairsAreThoseNotIntersectingAtRest) {
+  EXPECT_EQ(newSelfIntersections({{0, 1}, {0, 4}, {2, 3}, {5, 6}},
+                                 {{0, 4}, {1, 2}, {5, 6}}),
+            (Pairs{{0, 1}, {2, 3}}));
+  EXPECT_EQ(newSelfIntersections({}, {{0, 1}}), Pairs{});
+  EXPECT_EQ(newSelfIntersections({{0, 1}}, {}), (Pairs{{0, 1}}));
+  // Any order in, sorted and without repeats out.
+  EXPECT_EQ(newSelfIntersections({{3, 4}, {0, 1}, {3, 4}, {1, 2}}, {{1, 2}}),
+            (Pairs{{0, 1}, {3, 4}}));
 }
 
 // Independent reference for closed triangles with small integer corners,
@@ -250,28 +420,29 @@ TEST(SelfIntersection, TriangleTestMatchesSeparatingAxesOnGridTriangles) {
   EXPECT_LT(meeting, checked * 4 / 5);
 }
 
-// All pairs, each through a two-triangle call (no hierarchy to speak of).
+// All pairs, each through a two-triangle call (no hierarchy to speak of) on
+// the pair's welded vertices, so that shared vertices stay shared.
 Pairs bruteForcePairs(const Matrix3Xf& positions,
                       const TriangleMatrix& triangles,
                       const std::vector<int>* groups) {
   auto group = [&](int v) { return groups ? (*groups)[v] : v; };
   Pairs pairs;
-  Matrix3Xf six(6, 3);
-  const TriangleMatrix two = trianglesOf({{0, 1, 2}, {3, 4, 5}});
   for (int a = 0; a < triangles.rows(); ++a) {
     for (int b = a + 1; b < triangles.rows(); ++b) {
-      bool adjacent = false;
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) {
-          adjacent |= group(triangles(a, i)) == group(triangles(b, j));
+      std::vector<int> welded;  // local index -> welded vertex
+      TriangleMatrix two(2, 3);
+      for (int t = 0; t < 2; ++t) {
+        for (int c = 0; c < 3; ++c) {
+          const int g = group(triangles(t == 0 ? a : b, c));
+          auto it = std::find(welded.begin(), welded.end(), g);
+          two(t, c) = static_cast<int>(it - welded.begin());
+          if (it == welded.end()) welded.push_back(g);
         }
       }
-      if (adjacent) continue;
-      for (int c = 0; c < 3; ++c) {
-        six.row(c) = positions.row(triangles(a, c));
-        six.row(c + 3) = positions.row(triangles(b, c));
-      }
-      if (countSelfIntersections(six, two) == 1) pairs.emplace_back(a, b);
+      Matrix3Xf local(static_cast<int>(welded.size()), 3);
+      for (size_t v = 0; v < welded.size(); ++v)
+        local.row(v) = positions.row(welded[v]);
+      if (countSelfIntersections(local, two) == 1) pairs.emplace_back(a, b);
     }
   }
   return pairs;
@@ -425,6 +596,15 @@ TEST(SelfIntersection, RejectsBadInput) {
       [&] { countSelfIntersections(positions, triangles, &short_groups); });
   EXPECT_NE(message.find("3 entries for 4 vertices"), std::string::npos)
       << message;
+  // A group id must be a vertex index (the representative).
+  for (int bad : {-1, 4}) {
+    const std::vector<int> bad_groups = {0, 1, bad, 3};
+    message = invalidArgumentMessage(
+        [&] { countSelfIntersections(positions, triangles, &bad_groups); });
+    EXPECT_NE(message.find("vertex 2 the group " + std::to_string(bad)),
+              std::string::npos)
+        << message;
+  }
 }
 
 }  // namespace

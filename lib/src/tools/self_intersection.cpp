@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <iterator>
 #include <string>
 
 #include "isk/core/error.hpp"
@@ -265,17 +266,18 @@ bool insideTriangle(const std::array<Point2, 3>& t, int turn, Point2 p) {
          orient2d(t[2], t[0], p) * turn >= 0;
 }
 
-// Both triangles in one plane: compare them in a projection onto a coordinate
-// plane where that plane does not collapse.
-bool coplanarTrianglesMeet(const Corners& a, const Corners& b) {
-  // Project along the largest coordinate of the normal, approximate in
-  // double; the exact area checks below pick another axis if rounding erred.
+// A coordinate axis along which the non-degenerate triangle t projects to a
+// triangle (not a segment): the projection is then one-to-one on t's plane,
+// so incidences of points of that plane are decided in 2D. Tries the axes by
+// decreasing size of t's normal (approximate, in double); the exact area
+// checks pick another axis if rounding erred.
+int projectionAxis(const Corners& t) {
   double normal[3];
   {
     double e1[3], e2[3];
     for (int k = 0; k < 3; ++k) {
-      e1[k] = static_cast<double>(b[1][k]) - b[0][k];
-      e2[k] = static_cast<double>(b[2][k]) - b[0][k];
+      e1[k] = static_cast<double>(t[1][k]) - t[0][k];
+      e2[k] = static_cast<double>(t[2][k]) - t[0][k];
     }
     normal[0] = std::abs(e1[1] * e2[2] - e1[2] * e2[1]);
     normal[1] = std::abs(e1[2] * e2[0] - e1[0] * e2[2]);
@@ -285,28 +287,36 @@ bool coplanarTrianglesMeet(const Corners& a, const Corners& b) {
   std::sort(axes.begin(), axes.end(),
             [&](int i, int j) { return normal[i] > normal[j]; });
   for (int axis : axes) {
-    std::array<Point2, 3> pa, pb;
-    for (int c = 0; c < 3; ++c) {
-      pa[c] = project(a[c], axis);
-      pb[c] = project(b[c], axis);
-    }
-    const int turn_a = orient2d(pa[0], pa[1], pa[2]);
-    const int turn_b = orient2d(pb[0], pb[1], pb[2]);
-    // The plane is parallel to this axis: both projections are segments.
-    if (turn_a == 0 || turn_b == 0) continue;
-    for (int c = 0; c < 3; ++c) {
-      if (insideTriangle(pb, turn_b, pa[c])) return true;
-      if (insideTriangle(pa, turn_a, pb[c])) return true;
-    }
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) {
-        if (segmentsMeet(pa[i], pa[(i + 1) % 3], pb[j], pb[(j + 1) % 3]))
-          return true;
-      }
-    }
-    return false;
+    if (orient2d(project(t[0], axis), project(t[1], axis),
+                 project(t[2], axis)) != 0)
+      return axis;
   }
-  return false;  // unreachable for non-degenerate triangles
+  return axes[0];  // unreachable for non-degenerate triangles
+}
+
+// Both triangles in one plane: compare them in a projection onto a coordinate
+// plane where that plane does not collapse.
+bool coplanarTrianglesMeet(const Corners& a, const Corners& b) {
+  const int axis = projectionAxis(b);
+  std::array<Point2, 3> pa, pb;
+  for (int c = 0; c < 3; ++c) {
+    pa[c] = project(a[c], axis);
+    pb[c] = project(b[c], axis);
+  }
+  const int turn_a = orient2d(pa[0], pa[1], pa[2]);
+  const int turn_b = orient2d(pb[0], pb[1], pb[2]);
+  if (turn_a == 0 || turn_b == 0) return false;  // unreachable (degenerate)
+  for (int c = 0; c < 3; ++c) {
+    if (insideTriangle(pb, turn_b, pa[c])) return true;
+    if (insideTriangle(pa, turn_a, pb[c])) return true;
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      if (segmentsMeet(pa[i], pa[(i + 1) % 3], pb[j], pb[(j + 1) % 3]))
+        return true;
+    }
+  }
+  return false;
 }
 
 // Whether edge [p, q] of one triangle meets the closed triangle t, given the
@@ -349,6 +359,50 @@ bool trianglesMeet(const Corners& a, const Corners& b) {
   return false;
 }
 
+// Closed segment [p, q] (p != q) and closed non-degenerate triangle t, the
+// segment lying in t's plane or not (CGAL's do_intersect(Triangle_3,
+// Segment_3)).
+bool segmentMeetsTriangle(const float* p, const float* q, const Corners& t) {
+  const int side_p = orient3d(t[0], t[1], t[2], p);
+  const int side_q = orient3d(t[0], t[1], t[2], q);
+  if (side_p != 0 || side_q != 0) {
+    return edgeMeetsTriangle(p, q, side_p, side_q, t);
+  }
+  // In t's plane: an end inside t, or the segment crossing an edge of t.
+  const int axis = projectionAxis(t);
+  std::array<Point2, 3> pt;
+  for (int c = 0; c < 3; ++c) pt[c] = project(t[c], axis);
+  const int turn = orient2d(pt[0], pt[1], pt[2]);
+  const Point2 pp = project(p, axis), pq = project(q, axis);
+  if (insideTriangle(pt, turn, pp) || insideTriangle(pt, turn, pq)) return true;
+  for (int i = 0; i < 3; ++i) {
+    if (segmentsMeet(pp, pq, pt[i], pt[(i + 1) % 3])) return true;
+  }
+  return false;
+}
+
+// Triangles a and b sharing exactly the corner a[ia] == b[ib] (one welded
+// vertex): they intersect iff the edge of either opposite the shared vertex
+// meets the other (CGAL's do_faces_intersect, shared vertex).
+bool vertexNeighboursMeet(const Corners& a, int ia, const Corners& b, int ib) {
+  return segmentMeetsTriangle(b[(ib + 1) % 3], b[(ib + 2) % 3], a) ||
+         segmentMeetsTriangle(a[(ia + 1) % 3], a[(ia + 2) % 3], b);
+}
+
+// Triangles (u, v, r) and (u, v, s) sharing the edge u v (two welded
+// vertices): they intersect iff they are coplanar and r and s lie on the
+// same side of u v, folded flat onto each other (CGAL's do_faces_intersect,
+// shared edge: coplanar and coplanar_orientation(u, v, r, s) == POSITIVE).
+bool edgeNeighboursMeet(const float* u, const float* v, const float* r,
+                        const float* s) {
+  if (orient3d(u, v, r, s) != 0) return false;
+  const int axis = projectionAxis({u, v, r});
+  const Point2 pu = project(u, axis), pv = project(v, axis);
+  return orient2d(pu, pv, project(r, axis)) *
+             orient2d(pu, pv, project(s, axis)) >
+         0;
+}
+
 // ---------------------------------------------------------------------------
 // Bounding-volume hierarchy over the triangles' boxes, traversed against
 // itself: every pair of triangles whose boxes overlap is visited once.
@@ -374,8 +428,8 @@ void grow(Box& box, const Box& other) {
 struct Primitive {
   Box box;
   int triangle;
-  std::array<int, 3> groups;  // vertex group of each corner
-  Corners corners;
+  std::array<int, 3> groups;  // welded vertex of each corner, all distinct
+  Corners corners;            // at the welded vertices' positions
 };
 
 // Leaf: count > 0 primitives from `first`; inner: count == 0, children at
@@ -491,12 +545,40 @@ class SelfIntersectionSearch {
     const Primitive& a = primitives_[i];
     const Primitive& b = primitives_[j];
     if (!overlap(a.box, b.box)) return;
+    // The corners of a and b at a shared welded vertex (a triangle's groups
+    // are distinct: it would be degenerate otherwise).
+    int shared = 0, shared_a[3], shared_b[3];
     for (int ca = 0; ca < 3; ++ca) {
       for (int cb = 0; cb < 3; ++cb) {
-        if (a.groups[ca] == b.groups[cb]) return;  // adjacent
+        if (a.groups[ca] == b.groups[cb]) {
+          shared_a[shared] = ca;
+          shared_b[shared] = cb;
+          ++shared;
+        }
       }
     }
-    if (!trianglesMeet(a.corners, b.corners)) return;
+    bool meet = false;
+    switch (shared) {
+      case 0:
+        meet = trianglesMeet(a.corners, b.corners);
+        break;
+      case 1:
+        meet = vertexNeighboursMeet(a.corners, shared_a[0], b.corners,
+                                    shared_b[0]);
+        break;
+      case 2: {
+        // The corner of each triangle off the shared edge.
+        const int ra = 3 - shared_a[0] - shared_a[1];
+        const int rb = 3 - shared_b[0] - shared_b[1];
+        meet =
+            edgeNeighboursMeet(a.corners[shared_a[0]], a.corners[shared_a[1]],
+                               a.corners[ra], b.corners[rb]);
+        break;
+      }
+      default:  // the same face twice
+        meet = true;
+    }
+    if (!meet) return;
     pairs_.emplace_back(std::min(a.triangle, b.triangle),
                         std::max(a.triangle, b.triangle));
   }
@@ -511,7 +593,8 @@ class SelfIntersectionSearch {
 int countSelfIntersections(const Matrix3Xf& positions,
                            const TriangleMatrix& triangles,
                            const std::vector<int>* vertex_groups,
-                           std::vector<std::pair<int, int>>* pairs) {
+                           std::vector<std::pair<int, int>>* pairs,
+                           int* degenerate_triangles) {
   const Eigen::Index vertex_count = positions.rows();
   if (vertex_groups &&
       static_cast<Eigen::Index>(vertex_groups->size()) != vertex_count) {
@@ -529,11 +612,22 @@ int countSelfIntersections(const Matrix3Xf& positions,
                       std::to_string(positions(v, 1)) + ", " +
                       std::to_string(positions(v, 2)) + ")");
     }
+    if (vertex_groups) {
+      const int group = (*vertex_groups)[v];
+      if (group < 0 || group >= vertex_count) {
+        throw Error(ErrorCode::kInvalidArgument,
+                    "countSelfIntersections: vertex_groups gives vertex " +
+                        std::to_string(v) + " the group " +
+                        std::to_string(group) + ", not a vertex of " +
+                        std::to_string(vertex_count));
+      }
+    }
   }
   // Row-major #V by 3: vertex v's coordinates are 3 consecutive floats.
   const float* xyz = positions.data();
   std::vector<Primitive> primitives;
   primitives.reserve(static_cast<size_t>(triangles.rows()));
+  int degenerate = 0;
   for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
     Primitive p;
     for (int c = 0; c < 3; ++c) {
@@ -544,10 +638,16 @@ int countSelfIntersections(const Matrix3Xf& positions,
                         " refers to vertex " + std::to_string(index) + " of " +
                         std::to_string(vertex_count));
       }
-      p.corners[c] = xyz + 3 * static_cast<Eigen::Index>(index);
+      // The welded vertex: the group's representative, at its position.
       p.groups[c] = vertex_groups ? (*vertex_groups)[index] : index;
+      p.corners[c] = xyz + 3 * static_cast<Eigen::Index>(p.groups[c]);
     }
-    if (isDegenerate(p.corners[0], p.corners[1], p.corners[2])) continue;
+    // Collinear corners (two welded into one included): CGAL reports the
+    // face alone, as (f, f), and tests it against no other.
+    if (isDegenerate(p.corners[0], p.corners[1], p.corners[2])) {
+      ++degenerate;
+      continue;
+    }
     p.triangle = static_cast<int>(f);
     for (int k = 0; k < 3; ++k) {
       p.box.lo[k] =
@@ -564,7 +664,21 @@ int countSelfIntersections(const Matrix3Xf& positions,
     std::sort(found.begin(), found.end());
     *pairs = std::move(found);
   }
+  if (degenerate_triangles) *degenerate_triangles = degenerate;
   return count;
+}
+
+std::vector<std::pair<int, int>> newSelfIntersections(
+    const std::vector<std::pair<int, int>>& frame_pairs,
+    const std::vector<std::pair<int, int>>& rest_pairs) {
+  std::vector<std::pair<int, int>> frame = frame_pairs, rest = rest_pairs;
+  std::sort(frame.begin(), frame.end());
+  frame.erase(std::unique(frame.begin(), frame.end()), frame.end());
+  std::sort(rest.begin(), rest.end());
+  std::vector<std::pair<int, int>> fresh;
+  std::set_difference(frame.begin(), frame.end(), rest.begin(), rest.end(),
+                      std::back_inserter(fresh));
+  return fresh;
 }
 
 std::vector<int> coincidentVertexGroups(const Matrix3Xf& positions) {
