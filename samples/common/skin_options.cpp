@@ -34,7 +34,9 @@ void addRunOptions(CLI::App& app, Options& options) {
       ->required();
   app.add_option("--clip", options.clip,
                  "clip name or index (default: clip 0; a procedural bend "
-                 "when the rig has none)");
+                 "when the rig has none); 'rest' for the bind pose, "
+                 "'bend[:DEGREES]' for every joint bent to DEGREES (default "
+                 "90) on any rig");
   app.add_option("--frames", options.frames,
                  "frames sampled uniformly over the clip (default: 30 per "
                  "second, plus one)")

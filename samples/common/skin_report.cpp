@@ -18,6 +18,37 @@ nlohmann::json deviceSection(const ClDeviceInfo* info) {
           {"version", info->version}};
 }
 
+constexpr const char* kCountedPairs =
+    "pairs of triangles of the mesh welded by position that intersect "
+    "anywhere but at the vertices or edge they share (fold-overs of adjacent "
+    "triangles included), not intersecting at rest";
+constexpr const char* kMeasures =
+    "per frame: self_intersections (all pairs), new_self_intersections (not "
+    "at rest), volume_ratio (to rest), edge_strain_mean/max (|length / rest "
+    "length - 1|), dqs_distance_mean/max (distance from the DQS frame of the "
+    "same pose over the rest bounding-box diagonal, of the vertices farther "
+    "than 5% of the diagonal from any contact), jitter_mean/max (second "
+    "difference over three frames minus DQS's, over the diagonal), "
+    "lost_vertices";
+
+nlohmann::json optionalNumber(const std::optional<double>& value) {
+  return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
+}
+
+nlohmann::json frameJson(const FrameQuality& q) {
+  return {{"self_intersections", q.self_intersections},
+          {"new_self_intersections", q.new_self_intersections},
+          {"volume_ratio", optionalNumber(q.volume_ratio)},
+          {"edge_strain_mean", q.edge_strain_mean},
+          {"edge_strain_max", q.edge_strain_max},
+          {"contact_region_vertices", q.contact_region_vertices},
+          {"dqs_distance_mean", q.dqs_distance_mean},
+          {"dqs_distance_max", q.dqs_distance_max},
+          {"jitter_mean", optionalNumber(q.jitter_mean)},
+          {"jitter_max", optionalNumber(q.jitter_max)},
+          {"lost_vertices", q.lost_vertices}};
+}
+
 nlohmann::json qualitySection(const Options& options, const RunResult& result) {
   nlohmann::json quality;
   if (result.volume_ratio_min) {
@@ -33,11 +64,27 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result) {
   quality["rest_pose_error"] = result.rest_pose_error;
   if (!result.self_intersections.empty()) {
     const CountTotals totals = countTotals(result.self_intersections);
-    quality["self_intersections"] = {{"max", totals.max},
-                                     {"total", totals.total}};
+    quality["self_intersections"] = {
+        {"max", totals.max},
+        {"total", totals.total},
+        {"at_rest", result.rest_self_intersections},
+        {"counted", kCountedPairs}};
   }
   if (options.method == "implicit") {
     quality["contact_vertices"] = medianCount(result.contact_vertices);
+  }
+  if (!result.quality.empty()) {
+    const QualitySummary summary = summarizeQuality(result.quality);
+    quality["edge_strain"] = {{"mean", summary.edge_strain_mean},
+                              {"max", summary.edge_strain_max}};
+    quality["dqs_distance_max"] = summary.dqs_distance_max;
+    quality["jitter_max"] = optionalNumber(summary.jitter_max);
+    quality["lost_vertices_max"] = summary.lost_vertices_max;
+    quality["worst_frame"] = summary.worst_frame;
+    quality["measures"] = kMeasures;
+    nlohmann::json frames = nlohmann::json::array();
+    for (const FrameQuality& q : result.quality) frames.push_back(frameJson(q));
+    quality["frames"] = frames;
   }
   return quality;
 }
@@ -148,8 +195,9 @@ std::string formatRunSummary(const Options& options,
   }
   out << "; rest-pose error " << result.rest_pose_error;
   if (!result.self_intersections.empty()) {
-    out << "; self-intersections max "
-        << countTotals(result.self_intersections).max;
+    out << "; new self-intersecting pairs max "
+        << countTotals(result.self_intersections).max << " ("
+        << result.rest_self_intersections << " at rest)";
   }
   if (!result.contact_vertices.empty()) {
     out << "; contact vertices median " << medianCount(result.contact_vertices);

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -140,8 +141,41 @@ Rig loadRig(const std::string& input, ImportOptions options) {
   return rig;
 }
 
+std::optional<AnimationClip> proceduralClip(const Skeleton& skeleton,
+                                            const std::string& spec) {
+  if (spec == "rest") {
+    AnimationClip rest;  // no channel: every joint at its rest transform
+    rest.name = "rest";
+    return rest;
+  }
+  if (spec != "bend" && spec.rfind("bend:", 0) != 0) return std::nullopt;
+  double degrees = 90;
+  const bool has_angle = spec.size() >= 5;  // "bend:..."
+  if (has_angle) {
+    const std::string value = spec.substr(5);
+    char* end = nullptr;
+    degrees = std::strtod(value.c_str(), &end);
+    if (value.empty() || *end != '\0' || !std::isfinite(degrees) ||
+        degrees < 0 || degrees > 180) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "clip '" + spec +
+                      "': the bend's angle must be a number of degrees from "
+                      "0 to 180 (bend:DEGREES)");
+    }
+  }
+  AnimationClip bend =
+      makeBendClip(skeleton, static_cast<float>(degrees * kPi / 180), 1.0);
+  bend.name = has_angle ? spec : "bend:90";
+  return bend;
+}
+
 AnimationClip selectClip(const Rig& rig, const std::string& spec,
                          std::string* note) {
+  // The rig's own clip of that name first: nothing the asset holds is hidden.
+  if (rig.findClip(spec) < 0) {
+    if (std::optional<AnimationClip> clip = proceduralClip(rig.skeleton, spec))
+      return *clip;
+  }
   if (rig.clips.empty()) {
     if (!spec.empty()) {
       throw Error(ErrorCode::kInvalidArgument,
@@ -343,6 +377,16 @@ int FrameSkinner::lastContactCount() {
   return 0;
 }
 
+void FrameSkinner::lastTrackStates(std::vector<TrackState>& out) {
+  if (implicit_device_) {
+    implicit_device_->tracking().readStates(out);
+  } else if (implicit_reference_) {
+    out = implicit_reference_->tracking().states();
+  } else {
+    out.clear();
+  }
+}
+
 const TrackingMesh* FrameSkinner::trackingMesh() const {
   if (implicit_device_) return &implicit_device_->trackingMesh();
   if (implicit_reference_) return &implicit_reference_->trackingMesh();
@@ -415,13 +459,25 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       std::abs(result.rest_volume) > 1e-6 * diagonal * diagonal * diagonal;
 
   std::vector<std::vector<double>> stage_ms;
-  // Seam copies touch along edges without sharing an index: group them.
-  std::vector<int> vertex_groups;
-  if (options.self_intersections) {
-    vertex_groups = skinner.trackingMesh()
-                        ? skinner.trackingMesh()->rings.representative
-                        : coincidentVertexGroups(mesh.positions);
+  // The quality is measured on the mesh welded at its seams (copies that
+  // touch along edges without sharing an index), against DQS of the same
+  // pose skinned on the CPU reference (unless the frame is DQS).
+  std::optional<SkinQuality> quality;
+  std::optional<CpuSkinning> dqs_reference;
+  const bool frames_are_dqs =
+      !options.implicit && options.method == SkinningMethod::kDualQuaternion;
+  if (options.quality) {
+    quality.emplace(mesh, skinner.trackingMesh()
+                              ? skinner.trackingMesh()->rings.representative
+                              : coincidentVertexGroups(mesh.positions));
+    result.rest_self_intersections =
+        static_cast<int>(quality->restPairs().size());
+    if (!frames_are_dqs) {
+      dqs_reference.emplace(mesh, rig.weights, skeleton.jointCount());
+    }
   }
+  std::vector<TrackState> states;
+  std::vector<uint8_t> contacts;
   // Ends the progress line before an error message goes out.
   struct ProgressLine {
     bool active;
@@ -444,9 +500,27 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       stage_ms[s].push_back(stages[s].second);
     if (options.implicit)
       result.contact_vertices.push_back(skinner.lastContactCount());
-    if (options.self_intersections)
+    if (quality) {
+      if (dqs_reference) {
+        dqs_reference->run(SkinningMethod::kDualQuaternion, skinning,
+                           /*recompute_normals=*/false);
+      }
+      int lost = 0;
+      if (options.implicit) {
+        skinner.lastTrackStates(states);
+        contacts.assign(states.size(), 0);
+        for (size_t v = 0; v < states.size(); ++v) {
+          contacts[v] = states[v] == TrackState::kContact ||
+                        states[v] == TrackState::kCrease;
+          lost += states[v] == TrackState::kLost;
+        }
+      }
+      result.quality.push_back(quality->measure(
+          positions, dqs_reference ? &dqs_reference->positions() : nullptr,
+          options.implicit ? &contacts : nullptr, lost));
       result.self_intersections.push_back(
-          countSelfIntersections(positions, mesh.triangles, &vertex_groups));
+          result.quality.back().new_self_intersections);
+    }
 
     if (volume_meaningful) {
       const double ratio =

@@ -23,6 +23,7 @@
 #include "isk/rig/rig.hpp"
 #include "isk/skinning/cpu_skinning.hpp"
 #include "isk/skinning/skinning.hpp"
+#include "isk/tools/skin_quality.hpp"
 
 namespace isk::samples {
 
@@ -51,10 +52,18 @@ inline ImportOptions guardedImportOptions() {
   return options;
 }
 
-// The clip named `spec`, else the clip whose index `spec` spells; an empty
-// spec means clip 0. A rig without clips gets a 90-degree bend of every joint
-// over 1 s, and `note` says so. Throws isk::Error(kInvalidArgument) listing
-// the available clips when `spec` matches none.
+// The clips every rig has besides its own: "rest" (the bind pose, no
+// channel) and "bend[:DEGREES]" (every joint bent from 0 to DEGREES, default
+// 90, over 1 s: isk::makeBendClip). Unset for any other spec; throws
+// isk::Error(kInvalidArgument) for an angle that is not 0 to 180.
+std::optional<AnimationClip> proceduralClip(const Skeleton& skeleton,
+                                            const std::string& spec);
+
+// The clip named `spec`, else a procedural clip (proceduralClip), else the
+// clip whose index `spec` spells; an empty spec means clip 0. A rig without
+// clips gets a 90-degree bend of every joint over 1 s, and `note` says so.
+// Throws isk::Error(kInvalidArgument) listing the available clips when
+// `spec` matches none.
 AnimationClip selectClip(const Rig& rig, const std::string& spec,
                          std::string* note);
 
@@ -103,6 +112,9 @@ class FrameSkinner {
                     Matrix3Xf& normals);
   // Vertices stopped at a contact by the last skinImplicit().
   int lastContactCount();
+  // The tracking states of the last skinImplicit(), #V (a blocking read on
+  // the device); empty without implicit skinning.
+  void lastTrackStates(std::vector<TrackState>& out);
   // The tracking mesh of the implicit skinner (its welded vertex groups).
   const TrackingMesh* trackingMesh() const;
 
@@ -146,9 +158,10 @@ struct RunOptions {
   SkinningMethod method = SkinningMethod::kDualQuaternion;
   // Implicit skinning (the skinner's enableImplicit) instead of `method`.
   bool implicit = false;
-  // Count self-intersecting triangle pairs of every frame (a BVH per frame,
-  // outside the frame timings).
-  bool self_intersections = false;
+  // Measure every frame's quality (isk/tools/skin_quality.hpp, outside the
+  // frame timings): self-intersecting pairs, volume, edge strain, distance
+  // from DQS (skinned again on the CPU reference), jitter, lost vertices.
+  bool quality = false;
   std::vector<double> times;  // seconds, one per frame
   std::string out_dir;        // empty: no frame files
   MeshFormat format = MeshFormat::kObj;
@@ -170,10 +183,14 @@ struct RunResult {
   std::vector<double> frame_ms;  // skinning + normals + readback, per frame
   TimeSummary frame;
   StageTimes stage_median;  // per stage, median over the frames
-  // Per frame, when asked: self-intersecting pairs of non-adjacent
-  // triangles; vertices stopped at a contact (implicit only).
+  // Per frame, when asked: the quality measures, and the frame's
+  // self-intersecting pairs new against the rest pose (fold-overs of
+  // adjacent triangles included); vertices stopped at a contact (implicit).
+  std::vector<FrameQuality> quality;
   std::vector<int> self_intersections;
   std::vector<int> contact_vertices;
+  // Intersecting pairs of the rest pose (when quality was measured).
+  int rest_self_intersections = 0;
   double rest_volume = 0;
   // Unset when the rest volume is about 0 (an open or flat mesh), where
   // a ratio means nothing.

@@ -478,7 +478,7 @@ RunResult runOnReference(const RigScene& scene, int m, FrameSkinner& reference,
                          std::vector<isk::Matrix3Xf>& reference_frames) {
   const bool written = !frames_dir.empty();
   isk::samples::RunOptions options = methodRunOptions(scene, m);
-  options.self_intersections = written;
+  options.quality = written;
   options.on_frame = [&](int frame, const isk::Matrix3Xf& positions,
                          const isk::Matrix3Xf& normals) {
     reference_frames.push_back(positions);
@@ -501,7 +501,7 @@ RunResult runOnOpenCl(const RigScene& scene, int m, FrameSkinner& opencl,
                       MethodFrames& frames, double& max_difference) {
   isk::samples::RunOptions options = methodRunOptions(scene, m);
   options.out_dir = frames_dir;
-  options.self_intersections = true;
+  options.quality = true;
   options.on_frame = [&](int frame, const isk::Matrix3Xf& positions,
                          const isk::Matrix3Xf& normals) {
     const double distance =

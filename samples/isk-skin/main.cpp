@@ -269,7 +269,7 @@ isk::samples::RunOptions frameLoopOptions(const Options& options,
   run_options.format = skin::frameFormat(options);
   run_options.progress = frames > 5;
   run_options.implicit = options.method == "implicit";
-  run_options.self_intersections = true;
+  run_options.quality = true;
   return run_options;
 }
 

@@ -222,6 +222,51 @@ nlohmann::json runImplicit(const std::vector<std::string>& extra,
   return readReport(dir / "report.json");
 }
 
+// --clip rest writes the bind pose (nothing new, volume kept); --clip
+// bend:120 bends every joint, where DQS folds the cylinder through itself.
+// The report holds every measure per frame.
+TEST(IskSkinTest, RestAndBendClipsReportTheQualityPerFrame) {
+  ScopedTempDir dir;
+  const std::vector<std::string> rest_args = {
+      "builtin:cylinder", "--clip", "rest", "--report", dir / "rest.json"};
+  const RunOutput rest_run = runIskSkin(rest_args);
+  ASSERT_EQ(rest_run.exit_code, 0) << describe(rest_args, rest_run);
+  const nlohmann::json rest = readReport(dir / "rest.json");
+  EXPECT_EQ(rest["clip"], "rest");
+  EXPECT_EQ(rest["frames"], 1);
+  EXPECT_EQ(rest["quality"]["self_intersections"]["max"], 0);
+  EXPECT_DOUBLE_EQ(rest["quality"]["volume_ratio"]["min"].get<double>(), 1.0);
+  EXPECT_EQ(rest["quality"]["edge_strain"]["max"].get<double>(), 0.0);
+
+  const std::vector<std::string> bend_args = {
+      "builtin:cylinder", "--clip",         "bend:120", "--frames", "4",
+      "--report",         dir / "bend.json"};
+  const RunOutput bend_run = runIskSkin(bend_args);
+  ASSERT_EQ(bend_run.exit_code, 0) << describe(bend_args, bend_run);
+  const nlohmann::json bend = readReport(dir / "bend.json");
+  EXPECT_EQ(bend["clip"], "bend:120");
+  const nlohmann::json& quality = bend["quality"];
+  EXPECT_GT(quality["self_intersections"]["max"].get<int>(), 0);
+  ASSERT_EQ(quality["frames"].size(), 4u) << quality;
+  for (const char* key : {"self_intersections", "new_self_intersections",
+                          "volume_ratio", "edge_strain_mean", "edge_strain_max",
+                          "dqs_distance_max", "jitter_max", "lost_vertices"}) {
+    EXPECT_TRUE(quality["frames"][3].contains(key)) << key;
+  }
+  EXPECT_TRUE(quality["frames"][0]["jitter_max"].is_null());
+  EXPECT_FALSE(quality["frames"][3]["jitter_max"].is_null());
+  // DQS against itself: no distance.
+  EXPECT_EQ(quality["dqs_distance_max"].get<double>(), 0.0);
+  EXPECT_EQ(quality["worst_frame"], 3);
+
+  const std::vector<std::string> bad = {"builtin:cylinder", "--clip",
+                                        "bend:500"};
+  const RunOutput bad_run = runIskSkin(bad);
+  EXPECT_NE(bad_run.exit_code, 0);
+  EXPECT_NE(bad_run.output.find("0 to 180"), std::string::npos)
+      << bad_run.output;
+}
+
 TEST(IskSkinTest, ImplicitMethodReportsStagesSelfIntersectionsAndContacts) {
   ScopedTempDir dir;
   const nlohmann::json report = runImplicit({}, dir);

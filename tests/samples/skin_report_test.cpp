@@ -148,8 +148,8 @@ TEST(IskSkinReport, SummaryLineWordForWord) {
                                             "reference (CPU)", madeUpResult()),
             "isk-skin: 3 frames of clip 'bend' (dqs on reference (CPU)): "
             "median 1.235 ms/frame, p95 2 ms; volume ratio 0.9877 to 1; "
-            "rest-pose error 0; self-intersections max 4; wrote 3 files to "
-            "o\n");
+            "rest-pose error 0; new self-intersecting pairs max 4 (0 at rest); "
+            "wrote 3 files to o\n");
 
   Options options = madeUpOptions("implicit");
   options.out_dir.clear();

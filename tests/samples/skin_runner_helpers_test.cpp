@@ -8,8 +8,11 @@
 #include <string>
 #include <vector>
 
+#include "isk/core/error.hpp"
 #include "isk/io/gltf_export.hpp"
 #include "isk/io/rig_params.hpp"
+#include "isk/rig/animation.hpp"
+#include "isk/tools/procedural.hpp"
 #include "skin_runner.hpp"
 #include "test_support.hpp"
 
@@ -67,6 +70,45 @@ TEST(SkinRunnerHelpers, CountsPerFrameSumUp) {
   const samples::CountTotals none = samples::countTotals({});
   EXPECT_EQ(none.max, 0);
   EXPECT_EQ(none.total, 0);
+}
+
+// --clip rest and --clip bend[:DEGREES] on any rig; the rig's own clip of
+// that name wins; a bad angle is a clear error.
+TEST(SkinRunnerHelpers, RestAndBendClipsOnEveryRig) {
+  Rig rig = makeBuiltinRig("arm");
+  const std::optional<AnimationClip> rest =
+      samples::proceduralClip(rig.skeleton, "rest");
+  ASSERT_TRUE(rest);
+  EXPECT_EQ(rest->name, "rest");
+  EXPECT_TRUE(rest->channels.empty());
+  EXPECT_EQ(samples::defaultFrameCount(*rest), 1);
+  const std::optional<AnimationClip> bend =
+      samples::proceduralClip(rig.skeleton, "bend:60");
+  ASSERT_TRUE(bend);
+  EXPECT_EQ(bend->name, "bend:60");
+  const AnimationClip expected = makeBendClip(
+      rig.skeleton, static_cast<float>(3.14159265358979323846 / 3), 1.0);
+  const TransformList got = bend->sampleLocal(rig.skeleton, 1.0);
+  const TransformList want = expected.sampleLocal(rig.skeleton, 1.0);
+  ASSERT_EQ(got.size(), want.size());
+  for (size_t j = 0; j < got.size(); ++j)
+    EXPECT_TRUE(got[j].isApprox(want[j], 1e-6f)) << "joint " << j;
+  ASSERT_TRUE(samples::proceduralClip(rig.skeleton, "bend"));
+  EXPECT_EQ(samples::proceduralClip(rig.skeleton, "bend")->name, "bend:90");
+  EXPECT_FALSE(samples::proceduralClip(rig.skeleton, "Walk"));
+  for (const char* bad :
+       {"bend:", "bend:abc", "bend:200", "bend:-5", "bend:nan", "bend:90deg"}) {
+    EXPECT_THROW(samples::proceduralClip(rig.skeleton, bad), Error) << bad;
+  }
+  // A rig without clips takes them too.
+  rig.clips.clear();
+  EXPECT_EQ(samples::selectClip(rig, "rest", nullptr).name, "rest");
+  EXPECT_EQ(samples::selectClip(rig, "bend:120", nullptr).name, "bend:120");
+  // The rig's own clip named "rest" is not hidden.
+  AnimationClip own = expected;
+  own.name = "rest";
+  rig.clips = {own};
+  EXPECT_FALSE(samples::selectClip(rig, "rest", nullptr).channels.empty());
 }
 
 TEST(SkinRunnerHelpers, TracksSitSideBySideAroundTheMiddleOne) {

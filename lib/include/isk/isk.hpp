@@ -42,5 +42,6 @@
 #include "isk/tools/mesh_metrics.hpp"
 #include "isk/tools/procedural.hpp"
 #include "isk/tools/self_intersection.hpp"
+#include "isk/tools/skin_quality.hpp"
 #include "isk/tools/subdivide.hpp"
 #include "isk/tracking/surface_tracking.hpp"

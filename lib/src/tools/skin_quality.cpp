@@ -1,0 +1,282 @@
+#include "isk/tools/skin_quality.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <string>
+#include <unordered_map>
+
+#include "isk/core/error.hpp"
+#include "isk/tools/mesh_metrics.hpp"
+#include "isk/tools/self_intersection.hpp"
+
+namespace isk {
+
+namespace {
+
+std::vector<std::pair<int, int>> pairsOf(const Matrix3Xf& positions,
+                                         const TriangleMatrix& triangles,
+                                         const std::vector<int>& groups) {
+  std::vector<std::pair<int, int>> pairs;
+  countSelfIntersections(positions, triangles, &groups, &pairs);
+  return pairs;
+}
+
+std::vector<std::pair<int, int>> notIn(
+    const std::vector<std::pair<int, int>>& pairs,
+    const std::vector<std::pair<int, int>>& excluded) {
+  std::vector<std::pair<int, int>> out;
+  std::set_difference(pairs.begin(), pairs.end(), excluded.begin(),
+                      excluded.end(), std::back_inserter(out));
+  return out;
+}
+
+void checkRows(const Matrix3Xf& m, size_t rows, const char* what) {
+  if (static_cast<size_t>(m.rows()) != rows) {
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("SkinQuality::measure: ") + what + " has " +
+                    std::to_string(m.rows()) + " rows for " +
+                    std::to_string(rows) + " vertices");
+  }
+}
+
+// Integer cell of a point on a grid of `cell`-sized cubes.
+struct Cell {
+  int64_t x, y, z;
+  int64_t key() const {
+    return (x & 0x1fffff) | ((y & 0x1fffff) << 21) | ((z & 0x1fffff) << 42);
+  }
+};
+
+Cell cellOf(const Eigen::RowVector3f& p, float cell) {
+  return {static_cast<int64_t>(std::floor(p.x() / cell)),
+          static_cast<int64_t>(std::floor(p.y() / cell)),
+          static_cast<int64_t>(std::floor(p.z() / cell))};
+}
+
+}  // namespace
+
+SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
+                         SkinQualityOptions options)
+    : triangles_(rest.triangles),
+      groups_(std::move(vertex_groups)),
+      options_(options) {
+  const size_t vertex_count = rest.positions.rows();
+  if (groups_.size() != vertex_count) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "SkinQuality: " + std::to_string(groups_.size()) +
+                    " vertex groups for " + std::to_string(vertex_count) +
+                    " vertices");
+  }
+  for (size_t v = 0; v < vertex_count; ++v) {
+    if (groups_[v] < 0 || static_cast<size_t>(groups_[v]) >= vertex_count) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "SkinQuality: vertex " + std::to_string(v) + " has group " +
+                      std::to_string(groups_[v]) + ", not a vertex index");
+    }
+  }
+  diagonal_ = boundingBoxDiagonal(rest.positions);
+  rest_pairs_ = pairsOf(rest.positions, triangles_, groups_);
+  rest_volume_ = enclosedVolume(rest.positions, triangles_);
+  const double d = diagonal_;
+  volume_meaningful_ = d > 0 && std::abs(rest_volume_) > 1e-6 * d * d * d;
+
+  // The welded edges, each once, with their rest lengths.
+  for (Eigen::Index f = 0; f < triangles_.rows(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      int a = groups_[triangles_(f, c)];
+      int b = groups_[triangles_(f, (c + 1) % 3)];
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      edges_.emplace_back(a, b);
+    }
+  }
+  std::sort(edges_.begin(), edges_.end());
+  edges_.erase(std::unique(edges_.begin(), edges_.end()), edges_.end());
+  std::vector<std::pair<int, int>> kept;
+  for (const auto& [a, b] : edges_) {
+    const float length = (rest.positions.row(a) - rest.positions.row(b)).norm();
+    // A zero-length rest edge has no strain to speak of.
+    if (length > 0) {
+      kept.emplace_back(a, b);
+      edge_rest_lengths_.push_back(length);
+    }
+  }
+  edges_ = std::move(kept);
+}
+
+std::vector<uint8_t> SkinQuality::contactRegion(
+    const Matrix3Xf& reference, const std::vector<uint8_t>* contacts,
+    const std::vector<std::pair<int, int>>& reference_new_pairs) const {
+  const size_t vertex_count = groups_.size();
+  std::vector<uint8_t> seed(vertex_count, 0);
+  if (contacts) {
+    for (size_t v = 0; v < vertex_count; ++v)
+      if ((*contacts)[v]) seed[groups_[v]] = 1;
+  }
+  for (const auto& [f, g] : reference_new_pairs) {
+    for (int c = 0; c < 3; ++c) {
+      seed[groups_[triangles_(f, c)]] = 1;
+      seed[groups_[triangles_(g, c)]] = 1;
+    }
+  }
+  const float radius = options_.contact_radius * diagonal_;
+  std::vector<uint8_t> region(vertex_count, 0);
+  if (!(radius > 0)) {
+    for (size_t v = 0; v < vertex_count; ++v) region[v] = seed[groups_[v]];
+    return region;
+  }
+  std::unordered_map<int64_t, std::vector<int>> cells;
+  for (size_t v = 0; v < vertex_count; ++v) {
+    if (seed[v]) cells[cellOf(reference.row(v), radius).key()].push_back(v);
+  }
+  if (cells.empty()) return region;
+  const float radius2 = radius * radius;
+  for (size_t v = 0; v < vertex_count; ++v) {
+    if (groups_[v] != static_cast<int>(v)) continue;
+    const Cell c = cellOf(reference.row(v), radius);
+    bool near = false;
+    for (int dx = -1; dx <= 1 && !near; ++dx)
+      for (int dy = -1; dy <= 1 && !near; ++dy)
+        for (int dz = -1; dz <= 1 && !near; ++dz) {
+          const auto it = cells.find(Cell{c.x + dx, c.y + dy, c.z + dz}.key());
+          if (it == cells.end()) continue;
+          for (const int s : it->second) {
+            if ((reference.row(v) - reference.row(s)).squaredNorm() <=
+                radius2) {
+              near = true;
+              break;
+            }
+          }
+        }
+    region[v] = near;
+  }
+  for (size_t v = 0; v < vertex_count; ++v) region[v] = region[groups_[v]];
+  return region;
+}
+
+FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
+                                  const Matrix3Xf* dqs,
+                                  const std::vector<uint8_t>* contacts,
+                                  int lost) {
+  const size_t vertex_count = groups_.size();
+  checkRows(positions, vertex_count, "the frame");
+  if (dqs) checkRows(*dqs, vertex_count, "the DQS frame");
+  if (contacts && contacts->size() != vertex_count) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "SkinQuality::measure: " + std::to_string(contacts->size()) +
+                    " contact flags for " + std::to_string(vertex_count) +
+                    " vertices");
+  }
+  FrameQuality q;
+  q.lost_vertices = lost;
+  last_pairs_ = pairsOf(positions, triangles_, groups_);
+  last_new_pairs_ = notIn(last_pairs_, rest_pairs_);
+  q.self_intersections = static_cast<int>(last_pairs_.size());
+  q.new_self_intersections = static_cast<int>(last_new_pairs_.size());
+  if (volume_meaningful_) {
+    q.volume_ratio = enclosedVolume(positions, triangles_) / rest_volume_;
+  }
+
+  double strain_sum = 0;
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    const auto [a, b] = edges_[e];
+    const double strain = std::abs(
+        (positions.row(a) - positions.row(b)).norm() / edge_rest_lengths_[e] -
+        1.0);
+    strain_sum += strain;
+    q.edge_strain_max = std::max(q.edge_strain_max, strain);
+  }
+  if (!edges_.empty()) q.edge_strain_mean = strain_sum / edges_.size();
+
+  const Matrix3Xf& reference = dqs ? *dqs : positions;
+  const std::vector<std::pair<int, int>> reference_new =
+      dqs ? notIn(pairsOf(*dqs, triangles_, groups_), rest_pairs_)
+          : last_new_pairs_;
+  const std::vector<uint8_t> region =
+      contactRegion(reference, contacts, reference_new);
+  const double scale = diagonal_ > 0 ? 1.0 / diagonal_ : 1.0;
+  double distance_sum = 0;
+  int far_count = 0;
+  for (size_t v = 0; v < vertex_count; ++v) {
+    if (groups_[v] != static_cast<int>(v)) continue;
+    if (region[v]) {
+      ++q.contact_region_vertices;
+      continue;
+    }
+    const double d = (positions.row(v) - reference.row(v)).norm() * scale;
+    distance_sum += d;
+    ++far_count;
+    q.dqs_distance_max = std::max(q.dqs_distance_max, d);
+  }
+  if (far_count) q.dqs_distance_mean = distance_sum / far_count;
+
+  if (history_.size() == 2) {
+    double jitter_sum = 0, jitter_max = 0;
+    int count = 0;
+    for (size_t v = 0; v < vertex_count; ++v) {
+      if (groups_[v] != static_cast<int>(v)) continue;
+      const Eigen::RowVector3f a =
+          positions.row(v) - 2 * history_[1].row(v) + history_[0].row(v);
+      const Eigen::RowVector3f b = reference.row(v) -
+                                   2 * dqs_history_[1].row(v) +
+                                   dqs_history_[0].row(v);
+      const double j = (a - b).norm() * scale;
+      jitter_sum += j;
+      jitter_max = std::max(jitter_max, j);
+      ++count;
+    }
+    q.jitter_mean = count ? jitter_sum / count : 0.0;
+    q.jitter_max = jitter_max;
+  }
+  if (history_.size() == 2) {
+    history_.erase(history_.begin());
+    dqs_history_.erase(dqs_history_.begin());
+  }
+  history_.push_back(positions);
+  dqs_history_.push_back(reference);
+  return q;
+}
+
+QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames) {
+  QualitySummary s;
+  s.frames = static_cast<int>(frames.size());
+  double strain_sum = 0;
+  double worst_volume = -1;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const FrameQuality& q = frames[i];
+    s.self_intersections_max =
+        std::max(s.self_intersections_max, q.self_intersections);
+    s.new_self_intersections_total += q.new_self_intersections;
+    if (q.volume_ratio) {
+      s.volume_ratio_min = s.volume_ratio_min
+                               ? std::min(*s.volume_ratio_min, *q.volume_ratio)
+                               : *q.volume_ratio;
+      s.volume_ratio_max = s.volume_ratio_max
+                               ? std::max(*s.volume_ratio_max, *q.volume_ratio)
+                               : *q.volume_ratio;
+    }
+    strain_sum += q.edge_strain_mean;
+    s.edge_strain_max = std::max(s.edge_strain_max, q.edge_strain_max);
+    s.dqs_distance_max = std::max(s.dqs_distance_max, q.dqs_distance_max);
+    if (q.jitter_max) {
+      s.jitter_max =
+          s.jitter_max ? std::max(*s.jitter_max, *q.jitter_max) : *q.jitter_max;
+    }
+    s.lost_vertices_max = std::max(s.lost_vertices_max, q.lost_vertices);
+    const double volume =
+        q.volume_ratio ? std::abs(*q.volume_ratio - 1.0) : 0.0;
+    if (s.worst_frame < 0 ||
+        q.new_self_intersections > s.new_self_intersections_max ||
+        (q.new_self_intersections == s.new_self_intersections_max &&
+         volume > worst_volume)) {
+      s.worst_frame = static_cast<int>(i);
+      s.new_self_intersections_max = q.new_self_intersections;
+      worst_volume = volume;
+    }
+  }
+  if (!frames.empty()) s.edge_strain_mean = strain_sum / frames.size();
+  return s;
+}
+
+}  // namespace isk

@@ -1,0 +1,216 @@
+// The per-frame quality measures: each measure on frames built to have a
+// known value (rest pose, uniform scale, one vertex pushed out, a pop in the
+// third frame), the contact region, the summary's worst frame, the measures
+// on every asset and procedural rig at rest and bent, and bad input.
+#include "isk/tools/skin_quality.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "isk/core/error.hpp"
+#include "isk/rig/animation.hpp"
+#include "isk/rig/pose.hpp"
+#include "isk/skinning/cpu_skinning.hpp"
+#include "isk/tools/procedural.hpp"
+#include "isk/tools/self_intersection.hpp"
+#include "test_support.hpp"
+
+namespace isk {
+namespace {
+
+std::vector<int> groupsOf(const Mesh& mesh) {
+  return coincidentVertexGroups(mesh.positions);
+}
+
+TEST(SkinQuality, RestPoseMeasuresNothing) {
+  const Rig rig = makeCylinderRig();
+  SkinQuality quality(rig.mesh, groupsOf(rig.mesh));
+  EXPECT_TRUE(quality.restPairs().empty());
+  for (int frame = 0; frame < 3; ++frame) {
+    const FrameQuality q = quality.measure(rig.mesh.positions, nullptr);
+    EXPECT_EQ(q.self_intersections, 0);
+    EXPECT_EQ(q.new_self_intersections, 0);
+    ASSERT_TRUE(q.volume_ratio);
+    EXPECT_NEAR(*q.volume_ratio, 1.0, 1e-9);
+    EXPECT_EQ(q.edge_strain_mean, 0);
+    EXPECT_EQ(q.edge_strain_max, 0);
+    EXPECT_EQ(q.dqs_distance_max, 0);
+    EXPECT_EQ(q.jitter_mean.has_value(), frame == 2);
+    if (q.jitter_max) EXPECT_EQ(*q.jitter_max, 0);
+  }
+}
+
+TEST(SkinQuality, UniformScaleStrainsEveryEdgeAndScalesTheVolume) {
+  const Rig rig = makeCylinderRig();
+  SkinQuality quality(rig.mesh, groupsOf(rig.mesh));
+  const Matrix3Xf doubled = rig.mesh.positions * 2.f;
+  const FrameQuality q = quality.measure(doubled, &rig.mesh.positions);
+  EXPECT_NEAR(q.edge_strain_mean, 1.0, 1e-5);
+  EXPECT_NEAR(q.edge_strain_max, 1.0, 1e-5);
+  ASSERT_TRUE(q.volume_ratio);
+  EXPECT_NEAR(*q.volume_ratio, 8.0, 1e-4);
+  EXPECT_EQ(q.new_self_intersections, 0);
+  // Against the rest pose as its "DQS frame", far vertices moved by
+  // |p| each: the largest is the farthest vertex from the origin.
+  double farthest = 0;
+  for (int v = 0; v < rig.mesh.vertexCount(); ++v)
+    farthest = std::max<double>(farthest, rig.mesh.positions.row(v).norm());
+  EXPECT_NEAR(q.dqs_distance_max, farthest / quality.diagonal(), 1e-5);
+}
+
+// One vertex pushed through the opposite wall of the cylinder: a spike
+// whose triangles fold over their neighbours and cross the far side.
+TEST(SkinQuality, ASpikeIsCountedAndStrainsItsEdges) {
+  const Rig rig = makeCylinderRig();
+  const Mesh& mesh = rig.mesh;
+  SkinQuality quality(mesh, groupsOf(mesh));
+  int v = -1;  // a vertex half way along the axis (+x), on the surface
+  const float mid_x = 0.5f * (mesh.positions.col(0).minCoeff() +
+                              mesh.positions.col(0).maxCoeff());
+  float best = 1e30f;
+  for (int i = 0; i < mesh.vertexCount(); ++i) {
+    const Eigen::RowVector3f p = mesh.positions.row(i);
+    const float d =
+        std::abs(p.x() - mid_x) - Eigen::Vector2f(p.y(), p.z()).norm();
+    if (d < best) best = d, v = i;
+  }
+  Matrix3Xf spiked = mesh.positions;
+  const Eigen::RowVector3f radial(0, spiked(v, 1), spiked(v, 2));
+  spiked.row(v) -= 2.5f * radial;  // through the axis and out the far side
+  const FrameQuality q = quality.measure(spiked, &mesh.positions);
+  EXPECT_GT(q.self_intersections, 0);
+  EXPECT_EQ(q.new_self_intersections, q.self_intersections);
+  EXPECT_GT(q.edge_strain_max, 1.0);
+  EXPECT_LT(q.edge_strain_mean, 0.1);
+  // The DQS frame (the rest pose here) has no new pair: the spike is not
+  // near a contact and its distance is what the frame moved it.
+  EXPECT_NEAR(q.dqs_distance_max, 2.5 * radial.norm() / quality.diagonal(),
+              1e-5);
+  EXPECT_EQ(q.contact_region_vertices, 0);
+}
+
+TEST(SkinQuality, VerticesNearAContactAreLeftOutOfTheDistance) {
+  const Rig rig = makeCylinderRig();
+  const Mesh& mesh = rig.mesh;
+  SkinQuality quality(mesh, groupsOf(mesh), {/*contact_radius=*/0.05f});
+  Matrix3Xf moved = mesh.positions;
+  moved.row(0) += Eigen::RowVector3f(0, 0, 0.1f * quality.diagonal());
+  std::vector<uint8_t> contacts(mesh.vertexCount(), 0);
+  contacts[0] = 1;
+  const FrameQuality near =
+      quality.measure(moved, &mesh.positions, &contacts, 3);
+  EXPECT_EQ(near.dqs_distance_max, 0);
+  EXPECT_GE(near.contact_region_vertices, 1);
+  EXPECT_EQ(near.lost_vertices, 3);
+  const FrameQuality far = quality.measure(moved, &mesh.positions);
+  EXPECT_NEAR(far.dqs_distance_max, 0.1, 1e-5);
+  EXPECT_EQ(far.contact_region_vertices, 0);
+}
+
+TEST(SkinQuality, JitterIsThePopBeyondTheDqsMotion) {
+  const Rig rig = makeCylinderRig();
+  const Mesh& mesh = rig.mesh;
+  SkinQuality quality(mesh, groupsOf(mesh));
+  // Both move steadily (no jitter); then the frame pops one vertex.
+  const Eigen::RowVector3f step(0.01f, 0, 0);
+  std::vector<Matrix3Xf> frames;
+  for (int i = 0; i < 4; ++i) {
+    Matrix3Xf f = mesh.positions;
+    f.rowwise() += step * static_cast<float>(i);
+    frames.push_back(f);
+  }
+  Matrix3Xf popped = frames[3];
+  popped.row(5) += Eigen::RowVector3f(0, 0.02f * quality.diagonal(), 0);
+  quality.measure(frames[0], &frames[0]);
+  quality.measure(frames[1], &frames[1]);
+  const FrameQuality steady = quality.measure(frames[2], &frames[2]);
+  ASSERT_TRUE(steady.jitter_max);
+  EXPECT_NEAR(*steady.jitter_max, 0, 1e-6);
+  const FrameQuality pop = quality.measure(popped, &frames[3]);
+  ASSERT_TRUE(pop.jitter_max);
+  EXPECT_NEAR(*pop.jitter_max, 0.02, 1e-5);
+}
+
+TEST(SkinQuality, SummaryPicksTheWorstFrame) {
+  std::vector<FrameQuality> frames(4);
+  frames[0].volume_ratio = 0.99;
+  frames[1].volume_ratio = 0.95;
+  frames[1].new_self_intersections = 3;
+  frames[2].volume_ratio = 0.90;
+  frames[2].new_self_intersections = 3;
+  frames[3].volume_ratio = 1.01;
+  frames[3].edge_strain_max = 0.4;
+  frames[3].jitter_max = 0.002;
+  const QualitySummary s = summarizeQuality(frames);
+  EXPECT_EQ(s.frames, 4);
+  EXPECT_EQ(s.worst_frame, 2);
+  EXPECT_EQ(s.new_self_intersections_max, 3);
+  EXPECT_EQ(s.new_self_intersections_total, 6);
+  EXPECT_DOUBLE_EQ(*s.volume_ratio_min, 0.90);
+  EXPECT_DOUBLE_EQ(*s.volume_ratio_max, 1.01);
+  EXPECT_DOUBLE_EQ(s.edge_strain_max, 0.4);
+  EXPECT_DOUBLE_EQ(*s.jitter_max, 0.002);
+  EXPECT_EQ(summarizeQuality({}).worst_frame, -1);
+}
+
+TEST(SkinQuality, BadSizesAreClearErrors) {
+  const Rig rig = makeCylinderRig();
+  EXPECT_THROW(SkinQuality(rig.mesh, std::vector<int>(3, 0)), Error);
+  std::vector<int> groups = groupsOf(rig.mesh);
+  groups[1] = -4;
+  EXPECT_THROW(SkinQuality(rig.mesh, groups), Error);
+  SkinQuality quality(rig.mesh, groupsOf(rig.mesh));
+  EXPECT_THROW(quality.measure(Matrix3Xf::Zero(2, 3), nullptr), Error);
+  const Matrix3Xf wrong = Matrix3Xf::Zero(2, 3);
+  EXPECT_THROW(quality.measure(rig.mesh.positions, &wrong), Error);
+  const std::vector<uint8_t> flags(2, 0);
+  EXPECT_THROW(quality.measure(rig.mesh.positions, nullptr, &flags), Error);
+}
+
+// The rest pose measures nothing new on every rig, and DQS of a bend
+// measured against itself is 0 away from contact, on the procedural rigs and
+// every asset; LBS of the same bend differs from DQS.
+void checkRestAndBend(const Rig& rig, const std::string& name,
+                      bool bends_every_part) {
+  SCOPED_TRACE(name);
+  SkinQuality quality(rig.mesh, groupsOf(rig.mesh));
+  const FrameQuality rest = quality.measure(rig.mesh.positions, nullptr);
+  EXPECT_EQ(rest.new_self_intersections, 0);
+  EXPECT_EQ(rest.self_intersections,
+            static_cast<int>(quality.restPairs().size()));
+  EXPECT_NEAR(rest.edge_strain_max, 0, 1e-6);
+
+  const AnimationClip bend = makeBendClip(rig.skeleton, 1.5f, 1.0);
+  const TransformList skinning = skinningTransforms(
+      rig.skeleton,
+      globalTransforms(rig.skeleton, bend.sampleLocal(rig.skeleton, 1.0)));
+  CpuSkinning dqs(rig.mesh, rig.weights, rig.skeleton.jointCount());
+  dqs.run(SkinningMethod::kDualQuaternion, skinning, false);
+  CpuSkinning lbs(rig.mesh, rig.weights, rig.skeleton.jointCount());
+  lbs.run(SkinningMethod::kLinearBlend, skinning, false);
+  const FrameQuality d = quality.measure(dqs.positions(), nullptr);
+  EXPECT_EQ(d.dqs_distance_max, 0);
+  EXPECT_GT(d.edge_strain_max, 0);
+  const FrameQuality l = quality.measure(lbs.positions(), &dqs.positions());
+  EXPECT_GE(l.dqs_distance_max, 0);
+  // A bone of an asset may carry no vertex (nothing to strain).
+  if (bends_every_part) EXPECT_GT(l.edge_strain_max, 0);
+  EXPECT_TRUE(l.jitter_max.has_value());
+}
+
+TEST(SkinQuality, RestAndBendOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames())
+    checkRestAndBend(makeBuiltinRig(name), name, true);
+}
+
+TEST(SkinQuality, RestAndBendOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("the quality measures");
+  for (const std::string& name : test::assetNames())
+    checkRestAndBend(test::loadAsset(name), name, false);
+}
+
+}  // namespace
+}  // namespace isk
