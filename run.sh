@@ -18,7 +18,7 @@ cd "$(dirname "$0")"
 PACKAGES=(build-essential cmake pkg-config
   ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
   libeigen3-dev libopenmesh-dev libassimp-dev libgtest-dev libbenchmark-dev
-  libstb-dev libcli11-dev nlohmann-json3-dev libcgal-dev)
+  libstb-dev libcli11-dev nlohmann-json3-dev libcgal-dev python3)
 BUILD_DIR=${ISK_BUILD_DIR:-build}
 JOBS=${ISK_JOBS:-$(nproc)}
 
