@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Measures the skinning quality of LBS, DQS and implicit skinning and writes
-quality/QUALITY.md (with pictures under quality/images/) from one run.
+QUALITY.md at the repository root (with pictures under quality/images/)
+from one run.
 
     python3 quality/run_quality.py                      # everything
     python3 quality/run_quality.py --only cylinder --out /tmp/q.md
@@ -32,6 +33,8 @@ import tempfile
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DEFAULT_OUT = os.path.join(REPO, "QUALITY.md")
+DEFAULT_IMAGES = os.path.join(REPO, "quality", "images")
 DEFAULT_SKIN = os.path.join("build", "samples", "isk-skin", "isk-skin")
 DEFAULT_PICTURES = os.path.join("build", "samples", "frame-pictures",
                                 "isk-frame-pictures")
@@ -1086,12 +1089,12 @@ def parse_args(argv):
     parser.add_argument("--data", default=default_data,
                         help="the asset folder (default: $ISK_DATA_DIR, else "
                              "../shared/data from the repository root)")
-    parser.add_argument("--out", default=os.path.join(REPO, "quality",
-                                                      "QUALITY.md"),
-                        help="the markdown written (default: "
-                             "quality/QUALITY.md)")
+    parser.add_argument("--out", default=DEFAULT_OUT,
+                        help="the markdown written (default: QUALITY.md at "
+                             "the repository root)")
     parser.add_argument("--images",
-                        help="the pictures' folder (default: images/ beside "
+                        help="the pictures' folder (default: quality/images "
+                             "for the default --out, else images/ beside "
                              "--out)")
     parser.add_argument("--frames", type=int, default=DEFAULT_FRAMES,
                         help=f"frames per case (default {DEFAULT_FRAMES})")
@@ -1124,8 +1127,11 @@ def parse_args(argv):
     args.pictures = os.path.abspath(resolve(args.pictures))
     args.data = os.path.abspath(resolve(args.data))
     args.out = os.path.abspath(args.out)
-    args.images = os.path.abspath(
-        args.images or os.path.join(os.path.dirname(args.out), "images"))
+    if not args.images:
+        args.images = (DEFAULT_IMAGES if args.out == os.path.abspath(
+            DEFAULT_OUT) else os.path.join(os.path.dirname(args.out),
+                                           "images"))
+    args.images = os.path.abspath(args.images)
     if args.keep_frames:
         args.keep_frames = os.path.abspath(args.keep_frames)
     return args
