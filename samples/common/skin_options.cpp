@@ -141,6 +141,15 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
           ->capture_default_str(),
       app.add_flag("!--no-relaxation", tracking.relaxation,
                    "implicit: no tangential relaxation (eq. 5, 6)"),
+      app.add_option("--strain-limit", tracking.strain_limit,
+                     "implicit: how much two neighbours' offsets from DQS "
+                     "may differ, as a fraction of their rest distance")
+          ->check(CLI::Range(0.0, 100.0))
+          ->capture_default_str(),
+      app.add_option("--strain-limit-steps", tracking.strain_limit_steps,
+                     "implicit: steps of the strain limit (0: no limit)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
       app.add_option("--grid-precision", options.grid_precision,
                      "implicit: float, or half (grids rounded to 16-bit "
                      "floats: half the device memory, frames within a small "

@@ -100,7 +100,9 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"home_contact", t.home_contact},
           {"beta_diffusion", t.beta_diffusion},
           {"smoothing_steps", t.smoothing_steps},
-          {"crease_steps", t.crease_steps}};
+          {"crease_steps", t.crease_steps},
+          {"strain_limit", t.strain_limit},
+          {"strain_limit_steps", t.strain_limit_steps}};
 }
 
 }  // namespace

@@ -83,6 +83,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
                               (lane_tests_ ? " -DISK_LANE_TESTS=1" : ""));
   cl::Program relax = context_->program("tracking/relax");
   cl::Program smooth = context_->program("tracking/smooth");
+  cl::Program strain_limit = context_->program("tracking/strain_limit");
   cl::Program finish = context_->program("tracking/finish");
   begin_ = cl::Kernel(project, "track_begin");
   project_ = cl::Kernel(project, "track_project");
@@ -90,6 +91,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   beta_init_ = cl::Kernel(smooth, "track_beta_init");
   beta_diffuse_ = cl::Kernel(smooth, "track_beta_diffuse");
   smooth_ = cl::Kernel(smooth, "track_smooth");
+  limit_strain_ = cl::Kernel(strain_limit, "track_limit_strain");
   copy_duplicates_ = cl::Kernel(finish, "track_copy_duplicates");
   triangle_normals_kernel_ =
       cl::Kernel(context_->program("normals"), "triangle_normals");
@@ -112,6 +114,7 @@ void ClSurfaceTracking::uploadLayout(
   ring_offsets_ = uploadReadOnly(*context_, layout.ring_offsets, &bytes_);
   ring_neighbours_ = uploadReadOnly(*context_, layout.ring_neighbours, &bytes_);
   ring_weights_ = uploadReadOnly(*context_, layout.ring_weights, &bytes_);
+  ring_lengths_ = uploadReadOnly(*context_, layout.ring_lengths, &bytes_);
   near_offsets_ = uploadReadOnly(*context_, layout.near_offsets, &bytes_);
   near_neighbours_ = uploadReadOnly(*context_, layout.near_neighbours, &bytes_);
   reverse_offsets_ = uploadReadOnly(*context_, layout.reverse_offsets, &bytes_);
@@ -194,6 +197,9 @@ void ClSurfaceTracking::addTime(Stage stage, double ms) {
       break;
     case kSmoothing:
       times_.smoothing_ms += ms;
+      break;
+    case kStrainLimit:
+      times_.strain_limit_ms += ms;
       break;
     case kNormals:
       times_.normals_ms += ms;
@@ -384,6 +390,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     events_.clear();
     current_ = 0;
     fallback_normals_ = skinned_normals;
+    skinned_positions_ = skinned_positions;
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
     begin_.setArg(0, n);
     begin_.setArg(1, skinned_positions);
@@ -531,6 +538,29 @@ void ClSurfaceTracking::smooth() {
   }
 }
 
+void ClSurfaceTracking::limitStrain() {
+  checkBegun("limitStrain");
+  try {
+    for (int k = 0; k < options_.strain_limit_steps; ++k) {
+      limit_strain_.setArg(0, static_cast<cl_uint>(vertex_count_));
+      limit_strain_.setArg(1, static_cast<cl_uint>(march_count_));
+      limit_strain_.setArg(2, positions_[current_]);
+      limit_strain_.setArg(3, positions_[1 - current_]);
+      limit_strain_.setArg(4, skinned_positions_);
+      limit_strain_.setArg(5, begin_source_);
+      limit_strain_.setArg(6, ring_offsets_);
+      limit_strain_.setArg(7, ring_neighbours_);
+      limit_strain_.setArg(8, ring_lengths_);
+      limit_strain_.setArg(9, options_.strain_limit);
+      launch(limit_strain_, kStrainLimit);
+      current_ = 1 - current_;
+    }
+  } catch (const cl::Error& e) {
+    throwClError(
+        e, "ClSurfaceTracking::limitStrain on " + context_->info().describe());
+  }
+}
+
 void ClSurfaceTracking::finish() {
   checkBegun("finish");
   try {
@@ -570,6 +600,7 @@ void ClSurfaceTracking::run(const TransformList& skinning,
     if (options_.relaxation) relax();
   }
   smooth();
+  limitStrain();
   finish();
   try {
     context_->queue().finish();

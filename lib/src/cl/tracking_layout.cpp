@@ -116,6 +116,7 @@ TrackingDeviceLayout trackingDeviceLayout(
   std::vector<float> lengths;
   ringRows(mesh, &out, &lengths);
   nearRows(lengths, &out);
+  out.ring_lengths = std::move(lengths);
   reverseRows(&out);
   return out;
 }

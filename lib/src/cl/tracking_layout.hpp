@@ -34,6 +34,7 @@ struct TrackingDeviceLayout {
   std::vector<uint32_t> ring_offsets;
   std::vector<int> ring_neighbours;
   std::vector<float> ring_weights;
+  std::vector<float> ring_lengths;  // rest lengths (the strain limit)
   // The rows filtered to the neighbours within each vertex's smoothing
   // radius (rest distance), in ring order: the rows the diffusion and the
   // Laplacian steps average over.

@@ -24,8 +24,8 @@ constexpr float kSameNormalCos = 0.99f;
 
 // The paper's steps, named as in the kernels (kernels/tracking/):
 // newtonStep, contactStop, marchToContact, tangentialRelaxation,
-// smoothingStep. prev_gradients' w (ISK_GRADIENT_* of kernels/abi.h) says
-// what the vertex's last projection step was.
+// smoothingStep, strainLimitStep. prev_gradients' w (ISK_GRADIENT_* of
+// kernels/abi.h) says what the vertex's last projection step was.
 
 // Eq. 4: one step of x towards the surface where the field's value gap
 // (iso - f) closes, along the unit gradient, of sigma * gap / |gradient|
@@ -105,6 +105,32 @@ Eigen::Vector3f smoothingStep(const Eigen::Vector3f& x,
   return x + b * d + (1.f - b) * c * tangential;
 }
 
+// The strain limit's Jacobi step for one vertex: x (offset d from its
+// skinned position) moved, for each ring edge whose offsets differ by more
+// than limit * rest length, by half the excess towards the neighbour's
+// offset, over the ring's size (not over the violated edges: the step stays
+// continuous as an edge starts to violate). neighbour_offset and
+// rest_length: the ring's.
+template <typename Offsets, typename Lengths>
+Eigen::Vector3f strainLimitStep(const Eigen::Vector3f& x,
+                                const Eigen::Vector3f& d, int count,
+                                Offsets neighbour_offset, Lengths rest_length,
+                                float limit) {
+  Eigen::Vector3f correction = Eigen::Vector3f::Zero();
+  bool violated = false;
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3f diff = d - neighbour_offset(i);
+    const float length = std::sqrt(diff.dot(diff));
+    const float excess = length - limit * rest_length(i);
+    if (excess > 0.f) {
+      correction -= (0.5f * excess / length) * diff;
+      violated = true;
+    }
+  }
+  if (!violated) return x;
+  return x + correction / static_cast<float>(count);
+}
+
 }  // namespace
 
 Validation SurfaceTrackingOptions::validate() const {
@@ -145,6 +171,12 @@ Validation SurfaceTrackingOptions::validate() const {
                ": expected 0..1000");
   if (crease_steps < 0 || crease_steps > 1000)
     return bad("crease_steps " + std::to_string(crease_steps) +
+               ": expected 0..1000");
+  if (!(strain_limit >= 0 && strain_limit <= 100))
+    return bad("strain_limit " + std::to_string(strain_limit) +
+               ": expected a fraction of the rest length in [0, 100]");
+  if (strain_limit_steps < 0 || strain_limit_steps > 1000)
+    return bad("strain_limit_steps " + std::to_string(strain_limit_steps) +
                ": expected 0..1000");
   const int cells = detail::tuningOf(*this).neighbourhood_cells;
   if (cells < 0 || cells > 16)
@@ -750,6 +782,7 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
   neighbourhoods_ = fieldNeighbourhoods(
       *mesh_, *fields_, fieldTransforms(*fields_, skinning), partners_);
   positions_ = skinned_positions;
+  skinned_ = skinned_positions;
   fallback_normals_ = skinned_normals;
   states_.resize(n);
   prev_.setZero(n, 4);
@@ -981,6 +1014,33 @@ void CpuSurfaceTracking::smooth() {
   times_.smoothing_ms += millisecondsSince(start);
 }
 
+void CpuSurfaceTracking::limitStrain() {
+  checkBegun("limitStrain");
+  const auto start = std::chrono::steady_clock::now();
+  const int n = mesh_->vertexCount();
+  const OneRings& rings = mesh_->rings;
+  for (int k = 0; k < options_.strain_limit_steps; ++k) {
+    scratch_ = positions_;
+    for (int v = 0; v < n; ++v) {
+      if (!(mesh_->iso_values[v] > 0) || rings.representative[v] != v) continue;
+      const uint32_t begin = rings.offsets[v];
+      const int count = static_cast<int>(rings.offsets[v + 1] - begin);
+      const Eigen::Vector3f x = positions_.row(v).transpose();
+      const Eigen::Vector3f d = x - skinned_.row(v).transpose();
+      auto neighbour_offset = [&](int i) -> Eigen::Vector3f {
+        const int u = rings.neighbours[begin + i];
+        return (positions_.row(u) - skinned_.row(u)).transpose();
+      };
+      auto rest_length = [&](int i) { return mesh_->ring_lengths[begin + i]; };
+      scratch_.row(v) = strainLimitStep(x, d, count, neighbour_offset,
+                                        rest_length, options_.strain_limit)
+                            .transpose();
+    }
+    positions_.swap(scratch_);
+  }
+  times_.strain_limit_ms += millisecondsSince(start);
+}
+
 void CpuSurfaceTracking::finish() {
   checkBegun("finish");
   const auto start = std::chrono::steady_clock::now();
@@ -1008,6 +1068,7 @@ void CpuSurfaceTracking::run(const TransformList& skinning,
     if (options_.relaxation) relax();
   }
   smooth();
+  limitStrain();
   finish();
 }
 

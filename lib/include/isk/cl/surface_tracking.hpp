@@ -49,6 +49,7 @@ class ClSurfaceTracking {
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
+  void limitStrain();       // the strain limit's Jacobi steps
   void finish();            // seam copies and normals
 
   // The whole frame; returns when the device is done, with lastTimes().
@@ -91,7 +92,7 @@ class ClSurfaceTracking {
                 const Matrix4Xf& prev_gradients,
                 const Matrix4Xf* relax_frames = nullptr);
 
-  enum Stage { kProjection, kRelaxation, kSmoothing, kNormals };
+  enum Stage { kProjection, kRelaxation, kSmoothing, kStrainLimit, kNormals };
   // Over `items` work-items (-1: one per vertex).
   void launch(cl::Kernel& kernel, Stage stage, int items = -1);
   void addTime(Stage stage, double ms);
@@ -137,12 +138,14 @@ class ClSurfaceTracking {
   cl::Buffer lane_offsets_, lane_params_, lane_masks_;
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
-      copy_duplicates_, triangle_normals_kernel_, normals_kernel_;
+      limit_strain_, copy_duplicates_, triangle_normals_kernel_,
+      normals_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
       neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
-      ring_neighbours_, ring_weights_, normal_offsets_, normal_triangles_;
+      ring_neighbours_, ring_weights_, ring_lengths_, normal_offsets_,
+      normal_triangles_;
   // The mesh's triangles (#F by 3) and their cross products of the frame.
   int triangle_count_ = 0;
   cl::Buffer triangles_, triangle_normals_;
@@ -179,8 +182,9 @@ class ClSurfaceTracking {
   cl::Buffer positions_[2];
   int current_ = 0;
   cl::Buffer states_, prev_gradients_, relax_frames_, beta_[2], normals_;
-  int beta_current_ = 0;         // beta_[beta_current_]: the last diffusion's
-  cl::Buffer fallback_normals_;  // begin's skinned normals (a handle)
+  int beta_current_ = 0;          // beta_[beta_current_]: the last diffusion's
+  cl::Buffer fallback_normals_;   // begin's skinned normals (a handle)
+  cl::Buffer skinned_positions_;  // begin's skinned positions (a handle)
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;

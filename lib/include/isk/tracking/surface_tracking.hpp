@@ -30,6 +30,17 @@
 // T removing the component along the ring's normal, so that vertices piled
 // in a crease spread out without the crease shrinking.
 // Boundary, isolated and duplicate vertices are neither relaxed nor smoothed.
+// Strain limit (our addition, see docs/algorithm.md): last, every tracked
+// vertex's offset from its skinned position, d = x - s, is made to vary
+// slowly across the mesh: `strain_limit_steps` Jacobi steps each pull the
+// two ends of every ring edge whose offsets differ by more than
+// strain_limit * rest length towards each other (half the excess each, over
+// the vertex's ring size). An edge's length then differs
+// from its skinned length by about strain_limit of its rest length at most:
+// where the fields fit a coarse or thin part poorly, neighbours that marched
+// to different places (spikes, fold-overs) are brought back together, while
+// an offset that is smooth across the mesh (the contact surface of a
+// well-fitted fold, the bulge) passes unchanged.
 //
 // Contact by home field (home_contact, on by default; our addition, see
 // docs/algorithm.md): each vertex has a home field, the field of the
@@ -115,6 +126,11 @@ struct SurfaceTrackingOptions {
   // Laplacian steps.
   int crease_diffusion = 5;
   int crease_steps = 10;
+  // The strain limit (see above): the largest difference of two neighbours'
+  // offsets from skinning, as a fraction of their rest distance, and the
+  // Jacobi steps that enforce it (0: no limit).
+  float strain_limit = 2.f;
+  int strain_limit_steps = 16;
   // Speed-only switches of the device's tracking and of the broad phase
   // (field neighbourhoods, march order, occupied cells, value bounds,
   // neighbourhood cells, lane tests, active vertices): the same frames
@@ -300,13 +316,15 @@ TrackingCounts countStates(const std::vector<TrackState>& states);
 // Milliseconds per stage of one frame (host wall time on the CPU, profiling
 // events on OpenCL).
 struct TrackingStageTimes {
-  double projection_ms = 0;  // all projection steps
-  double relaxation_ms = 0;  // all relaxation steps
-  double smoothing_ms = 0;   // beta diffusion and Laplacian steps
-  double normals_ms = 0;     // seam copies and normals
+  double projection_ms = 0;    // all projection steps
+  double relaxation_ms = 0;    // all relaxation steps
+  double smoothing_ms = 0;     // beta diffusion and Laplacian steps
+  double strain_limit_ms = 0;  // the strain limit's steps
+  double normals_ms = 0;       // seam copies and normals
   // Sum of the stages.
   double total() const {
-    return projection_ms + relaxation_ms + smoothing_ms + normals_ms;
+    return projection_ms + relaxation_ms + smoothing_ms + strain_limit_ms +
+           normals_ms;
   }
 };
 
@@ -332,9 +350,11 @@ class CpuSurfaceTracking {
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
+  void limitStrain();       // the strain limit's Jacobi steps
   void finish();            // seam copies and normals
 
-  // The whole frame: begin, rounds x (project, relax), smooth, finish.
+  // The whole frame: begin, rounds x (project, relax), smooth, limitStrain,
+  // finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
            const Matrix3Xf& skinned_normals);
 
@@ -370,7 +390,7 @@ class CpuSurfaceTracking {
   SurfaceTrackingOptions options_;
   TransformList skinning_;
   TrackingLengths lengths_;
-  Matrix3Xf positions_, scratch_, fallback_normals_, normals_;
+  Matrix3Xf positions_, scratch_, skinned_, fallback_normals_, normals_;
   std::vector<TrackState> states_;
   std::vector<int> partners_;           // activePartners of the frame's pose
   FieldNeighbourhoods neighbourhoods_;  // of the frame's pose
