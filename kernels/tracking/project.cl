@@ -305,9 +305,9 @@ ISK_INLINE bool contact_stop(const float3 unit, const float4 prev,
 }
 
 // The contact by home field: a vertex that another part's field has
-// entered (by `entered` over its rest margin) marches to the contact
-// surface c = entered + contact_gap = 0 instead of its iso value, and stops
-// there. ISK_CONTACT_MARCH_NONE: not held, the paper's march goes on;
+// entered (by `entered` over its rest margin, more than contact_entry)
+// marches to the contact surface c = entered + contact_gap = 0 instead of
+// its iso value, and stops there. ISK_CONTACT_MARCH_NONE: not held, the paper's march goes on;
 // ISK_CONTACT_MARCH_STEPPED: x stepped towards the contact surface;
 // otherwise the state the vertex stops in.
 #define ISK_CONTACT_MARCH_NONE (-1)
@@ -316,7 +316,8 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
                                 const float f, const float iso, const float4 h,
                                 const float4 other, const float entered,
                                 const float contact_gap, const float tolerance,
-                                const float sigma, const float max_step,
+                                const float contact_entry, const float sigma,
+                                const float max_step,
                                 const float min_gradient) {
   bool to_contact = prev->w == ISK_GRADIENT_TO_CONTACT;
   if (to_contact && f < iso - tolerance) {
@@ -324,7 +325,7 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
     prev->w = ISK_GRADIENT_UNSET;
   }
   if (!(h.x > 0.0f &&
-        (to_contact || (f > iso + tolerance && entered > tolerance))))
+        (to_contact || (f > iso + tolerance && entered > contact_entry))))
     return ISK_CONTACT_MARCH_NONE;
   const float c = entered + contact_gap;
   if (to_contact && c <= tolerance) return ISK_TRACK_CONTACT;
@@ -338,7 +339,7 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
 }
 
 // `steps` projection steps of every marching vertex. step_params: sigma,
-// cos(contact angle), tolerance (field units), unused; step_limits per
+// cos(contact angle), tolerance and contact_entry (field units); step_limits per
 // vertex (isk::trackingLengths): the largest move and the smallest
 // |grad f| (model units); then ISK_TRACKING_PARAMS.
 // prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
@@ -387,7 +388,7 @@ __kernel void track_project(const uint march_count, __global float* positions,
       entered = other.x - h.x - margin;
       const int march = march_to_contact(
           &x, &prev, &frame, sample.x, iso, h, other, entered, contact_gap,
-          step_params.z, step_params.x, max_step, min_gradient);
+          step_params.z, step_params.w, step_params.x, max_step, min_gradient);
       if (march == ISK_CONTACT_MARCH_STEPPED) continue;
       if (march != ISK_CONTACT_MARCH_NONE) {
         state = (uchar)march;

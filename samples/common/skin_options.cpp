@@ -141,6 +141,12 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
           ->capture_default_str(),
       app.add_flag("!--no-relaxation", tracking.relaxation,
                    "implicit: no tangential relaxation (eq. 5, 6)"),
+      app.add_option("--contact-entry", tracking.contact_entry,
+                     "implicit: how far (field units) another part's field "
+                     "must exceed a vertex's own before it marches to the "
+                     "contact surface")
+          ->check(CLI::Range(1e-6, 0.999))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")

@@ -98,6 +98,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"tolerance", t.tolerance},
           {"relaxation", t.relaxation},
           {"home_contact", t.home_contact},
+          {"contact_entry", t.contact_entry},
           {"beta_diffusion", t.beta_diffusion},
           {"smoothing_steps", t.smoothing_steps},
           {"crease_steps", t.crease_steps},

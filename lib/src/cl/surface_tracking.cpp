@@ -428,8 +428,8 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(3, states_);
     project_.setArg(4, prev_gradients_);
     project_.setArg(5, static_cast<cl_int>(steps));
-    project_.setArg(
-        6, cl_float4{{options_.sigma, cos_contact, options_.tolerance, 0.f}});
+    project_.setArg(6, cl_float4{{options_.sigma, cos_contact,
+                                  options_.tolerance, options_.contact_entry}});
     project_.setArg(7, step_limits_);
     setContactArgs(project_, ISK_PROJECT_ARG_CONTACT);
     fields_->setFieldArgs(project_, ISK_PROJECT_ARG_FIELDS);

@@ -46,11 +46,11 @@ bool contactStop(const Eigen::Vector3f& unit, const Eigen::Vector4f& prev,
 }
 
 // The contact by home field: a vertex that another part's field has
-// entered (by `entered` over its rest margin) marches to the contact
-// surface c = entered + contact_gap = 0 instead of its iso value, and stops
-// there. kContactMarchNone: not held, the paper's march goes on;
-// kContactMarchStepped: x stepped towards the contact surface; otherwise
-// the state the vertex stops in.
+// entered (by `entered` over its rest margin, more than contact_entry)
+// marches to the contact surface c = entered + contact_gap = 0 instead of
+// its iso value, and stops there. kContactMarchNone: not held, the paper's
+// march goes on; kContactMarchStepped: x stepped towards the contact surface;
+// otherwise the state the vertex stops in.
 constexpr int kContactMarchNone = -1;
 constexpr int kContactMarchStepped = -2;
 int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
@@ -66,7 +66,7 @@ int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
   }
   if (!(home.home[0] > 0.f &&
         (marching_to_contact ||
-         (f > iso + options.tolerance && entered > options.tolerance))))
+         (f > iso + options.tolerance && entered > options.contact_entry))))
     return kContactMarchNone;
   const float c = entered + options.contact_gap;
   if (marching_to_contact && c <= options.tolerance)
@@ -151,6 +151,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(max_step > 0 && max_step <= 1))
     return bad("max_step " + std::to_string(max_step) +
                ": expected a fraction of the diagonal in (0, 1]");
+  if (!(contact_entry >= tolerance && contact_entry < 1))
+    return bad("contact_entry " + std::to_string(contact_entry) +
+               ": expected field units in [tolerance, 1)");
   if (!(contact_gap >= 0 && contact_gap < 0.5f))
     return bad("contact_gap " + std::to_string(contact_gap) +
                ": expected field units in [0, 0.5)");

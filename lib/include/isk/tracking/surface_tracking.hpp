@@ -46,20 +46,19 @@
 // docs/algorithm.md): each vertex has a home field, the field of the
 // bone it was partitioned to. A vertex that geometric skinning pushed into
 // another part (the largest other field o exceeds its home field h by more
-// than at rest: o - h - margin > tolerance, with f > iso) marches instead to
-// the contact surface between the two parts, by Newton steps on
-// c = o - h - margin + contact_gap along grad(o - h), and stops there as a
-// contact. The paper's march would carry such a vertex out through the far
-// side of the other part when skinning put it past that part's bone (deep
-// folds, Figure 14(d)), and piles both parts' vertices on one surface at a
-// crease; contact_gap (field units) leaves the two parts' sheets a hair
-// apart instead of crossing. A field joined to the home field by a blend
-// pair whose joint is turned by less than 90 degrees from its bind pose is
-// not an "other" part: there the blend shapes the fold (a fillet, no
-// contact); from 90 degrees on the blend is a union and the parts meet in
-// contact. Bulge pairs keep the max's contact crease: always other parts.
-// A vertex that converges onto another part's surface beyond its rest
-// margin ends in a crease between parts (a concave union edge, where the
+// than at rest: o - h - margin > contact_entry, with f > iso) marches instead
+// to the contact surface between the two parts, by Newton steps on c = o - h -
+// margin + contact_gap along grad(o - h), and stops there as a contact. The
+// paper's march would carry such a vertex out through the far side of the other
+// part when skinning put it past that part's bone (deep folds, Figure 14(d)),
+// and piles both parts' vertices on one surface at a crease; contact_gap (field
+// units) leaves the two parts' sheets a hair apart instead of crossing. A field
+// joined to the home field by a blend pair whose joint is turned by less than
+// 90 degrees from its bind pose is not an "other" part: there the blend shapes
+// the fold (a fillet, no contact); from 90 degrees on the blend is a union and
+// the parts meet in contact. Bulge pairs keep the max's contact crease: always
+// other parts. A vertex that converges onto another part's surface beyond its
+// rest margin ends in a crease between parts (a concave union edge, where the
 // march piles vertices from both sides): it is marked kCrease and smoothed
 // tangentially.
 // Duplicates (seam copies, see one_ring.hpp) copy their representative's
@@ -115,6 +114,11 @@ struct SurfaceTrackingOptions {
   // Contact by home field (see above) and the gap it leaves, field units.
   bool home_contact = true;
   float contact_gap = 0.05f;
+  // How far (field units) another part's field must exceed the home field,
+  // over the rest margin, before a vertex marches to the contact surface
+  // (docs/algorithm.md measures it: raised, poorly fitted characters keep
+  // their volume and well-fitted folds lose their contact).
+  float contact_entry = 1e-3f;
   int beta_diffusion = 1;   // eq. 7: diffusion iterations of beta
   int smoothing_steps = 8;  // eq. 7: Laplacian steps
   // Localized: diffusion and Laplacian steps use only the neighbours within
