@@ -8,38 +8,52 @@
 //
 // Per-vertex arrays and the one-rings are in the device's vertex order
 // (tracking/project.cl); the skinned positions are in the mesh's order,
-// device index k reading skinned[source[k]].
+// device index k reading skinned[source[k]]. The steps work on the offsets
+// (packed float triples) and a uchar per vertex that says whether its last
+// step moved it: a vertex none of whose ring moved in the last step has the
+// same edges as then, none violated, and is only copied.
 
 #include "common.h"
 
-// One Jacobi step for one vertex: x (offset d) moved, for each ring edge
-// whose offsets differ by more than limit * rest length, by half the excess
-// towards the neighbour's offset, over the ring's size (continuous as an
-// edge starts to violate).
-__kernel void track_limit_strain(const uint vertex_count,
-                                 const uint march_count,
-                                 __global const float* positions_in,
-                                 __global float* positions_out,
-                                 __global const float* skinned,
-                                 __global const int* source,
-                                 __global const uint* ring_offsets,
-                                 __global const int* ring_neighbours,
-                                 __global const float* ring_lengths,
-                                 const float limit) {
+// The offsets from the skinned positions; every vertex marked as moved, so
+// that the first step visits them all.
+__kernel void track_strain_offsets(const uint vertex_count,
+                                   __global const float* positions,
+                                   __global const float* skinned,
+                                   __global const int* source,
+                                   __global float* offsets,
+                                   __global uchar* moved) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const float3 x = vload3(v, positions_in);
-  float3 out = x;
-  // The tracked vertices are the first march_count (march order).
-  if (v < march_count) {
-    const float3 d = x - vload3(source[v], skinned);
+  vstore3(vload3(v, positions) - vload3(source[v], skinned), v, offsets);
+  moved[v] = 1;
+}
+
+// One Jacobi step for one vertex (strainLimitStep): its offset d moved, for
+// each ring edge whose offsets differ by more than limit * rest length, by
+// half the excess towards the neighbour's offset, over the ring's size
+// (continuous as an edge starts to violate). Only the tracked vertices (the
+// first march_count, march order) move.
+__kernel void track_limit_strain(
+    const uint vertex_count, const uint march_count,
+    __global const float* offsets_in, __global float* offsets_out,
+    __global const uchar* moved_in, __global uchar* moved_out,
+    __global const uint* ring_offsets, __global const int* ring_neighbours,
+    __global const float* ring_lengths, const float limit) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const float3 d = vload3(v, offsets_in);
+  float3 out = d;
+  uchar moved = 0;
+  const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
+  bool active = v < march_count && moved_in[v] != 0;
+  for (uint i = begin; v < march_count && !active && i < end; ++i)
+    active = moved_in[ring_neighbours[i]] != 0;
+  if (active) {
     float3 correction = (float3)(0.0f);
     bool violated = false;
-    const uint end = ring_offsets[v + 1];
-    for (uint i = ring_offsets[v]; i < end; ++i) {
-      const int u = ring_neighbours[i];
-      const float3 diff =
-          d - (vload3(u, positions_in) - vload3(source[u], skinned));
+    for (uint i = begin; i < end; ++i) {
+      const float3 diff = d - vload3(ring_neighbours[i], offsets_in);
       const float length =
           sqrt(diff.x * diff.x + diff.y * diff.y + diff.z * diff.z);
       const float excess = length - limit * ring_lengths[i];
@@ -48,7 +62,27 @@ __kernel void track_limit_strain(const uint vertex_count,
         violated = true;
       }
     }
-    if (violated) out = x + correction / (float)(end - ring_offsets[v]);
+    if (violated) {
+      out = d + correction / (float)(end - begin);
+      moved = 1;
+    }
   }
-  vstore3(out, v, positions_out);
+  vstore3(out, v, offsets_out);
+  moved_out[v] = moved;
+}
+
+// Back to positions: s + d where the steps changed the offset, the position
+// itself where they did not (bit for bit).
+__kernel void track_strain_positions(const uint vertex_count,
+                                     __global float* positions,
+                                     __global const float* skinned,
+                                     __global const int* source,
+                                     __global const float* offsets) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const float3 x = vload3(v, positions);
+  const float3 s = vload3(source[v], skinned);
+  const float3 d0 = x - s;
+  const float3 d = vload3(v, offsets);
+  if (d.x != d0.x || d.y != d0.y || d.z != d0.z) vstore3(s + d, v, positions);
 }

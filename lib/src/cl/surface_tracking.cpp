@@ -92,6 +92,8 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   beta_diffuse_ = cl::Kernel(smooth, "track_beta_diffuse");
   smooth_ = cl::Kernel(smooth, "track_smooth");
   limit_strain_ = cl::Kernel(strain_limit, "track_limit_strain");
+  strain_offsets_ = cl::Kernel(strain_limit, "track_strain_offsets");
+  strain_positions_ = cl::Kernel(strain_limit, "track_strain_positions");
   copy_duplicates_ = cl::Kernel(finish, "track_copy_duplicates");
   triangle_normals_kernel_ =
       cl::Kernel(context_->program("normals"), "triangle_normals");
@@ -179,11 +181,13 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   prev_gradients_ = rw(n * 4 * sizeof(float));
   relax_frames_ = rw(n * 4 * sizeof(float));
   for (auto& b : beta_) b = rw(2 * n * sizeof(float));
+  for (auto& b : strain_offsets_buffers_) b = rw(floats3);
+  for (auto& b : strain_moved_) b = rw(n);
   reach_ = rw(n);
   const size_t triangle_floats3 =
       3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
   triangle_normals_ = rw(triangle_floats3);
-  bytes_ += 3 * floats3 + 2 * n + 2 * n * 4 * sizeof(float) +
+  bytes_ += 5 * floats3 + 4 * n + 2 * n * 4 * sizeof(float) +
             4 * n * sizeof(float) + triangle_floats3;
 }
 
@@ -540,21 +544,37 @@ void ClSurfaceTracking::smooth() {
 
 void ClSurfaceTracking::limitStrain() {
   checkBegun("limitStrain");
+  if (options_.strain_limit_steps == 0) return;
   try {
+    const cl_uint n = static_cast<cl_uint>(vertex_count_);
+    strain_offsets_.setArg(0, n);
+    strain_offsets_.setArg(1, positions_[current_]);
+    strain_offsets_.setArg(2, skinned_positions_);
+    strain_offsets_.setArg(3, begin_source_);
+    strain_offsets_.setArg(4, strain_offsets_buffers_[0]);
+    strain_offsets_.setArg(5, strain_moved_[0]);
+    launch(strain_offsets_, kStrainLimit);
+    int b = 0;
     for (int k = 0; k < options_.strain_limit_steps; ++k) {
-      limit_strain_.setArg(0, static_cast<cl_uint>(vertex_count_));
+      limit_strain_.setArg(0, n);
       limit_strain_.setArg(1, static_cast<cl_uint>(march_count_));
-      limit_strain_.setArg(2, positions_[current_]);
-      limit_strain_.setArg(3, positions_[1 - current_]);
-      limit_strain_.setArg(4, skinned_positions_);
-      limit_strain_.setArg(5, begin_source_);
+      limit_strain_.setArg(2, strain_offsets_buffers_[b]);
+      limit_strain_.setArg(3, strain_offsets_buffers_[1 - b]);
+      limit_strain_.setArg(4, strain_moved_[b]);
+      limit_strain_.setArg(5, strain_moved_[1 - b]);
       limit_strain_.setArg(6, ring_offsets_);
       limit_strain_.setArg(7, ring_neighbours_);
       limit_strain_.setArg(8, ring_lengths_);
       limit_strain_.setArg(9, options_.strain_limit);
       launch(limit_strain_, kStrainLimit);
-      current_ = 1 - current_;
+      b = 1 - b;
     }
+    strain_positions_.setArg(0, n);
+    strain_positions_.setArg(1, positions_[current_]);
+    strain_positions_.setArg(2, skinned_positions_);
+    strain_positions_.setArg(3, begin_source_);
+    strain_positions_.setArg(4, strain_offsets_buffers_[b]);
+    launch(strain_positions_, kStrainLimit);
   } catch (const cl::Error& e) {
     throwClError(
         e, "ClSurfaceTracking::limitStrain on " + context_->info().describe());

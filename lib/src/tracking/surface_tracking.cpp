@@ -105,30 +105,29 @@ Eigen::Vector3f smoothingStep(const Eigen::Vector3f& x,
   return x + b * d + (1.f - b) * c * tangential;
 }
 
-// The strain limit's Jacobi step for one vertex: x (offset d from its
-// skinned position) moved, for each ring edge whose offsets differ by more
+// The strain limit's Jacobi step for one vertex: its offset d from its
+// skinned position moved, for each ring edge whose offsets differ by more
 // than limit * rest length, by half the excess towards the neighbour's
 // offset, over the ring's size (not over the violated edges: the step stays
-// continuous as an edge starts to violate). neighbour_offset and
-// rest_length: the ring's.
+// continuous as an edge starts to violate). neighbour_offset(i) and
+// rest_length(i): the ring's i-th. *moved: whether an edge was violated.
 template <typename Offsets, typename Lengths>
-Eigen::Vector3f strainLimitStep(const Eigen::Vector3f& x,
-                                const Eigen::Vector3f& d, int count,
+Eigen::Vector3f strainLimitStep(const Eigen::Vector3f& d, int count,
                                 Offsets neighbour_offset, Lengths rest_length,
-                                float limit) {
+                                float limit, bool* moved) {
   Eigen::Vector3f correction = Eigen::Vector3f::Zero();
-  bool violated = false;
+  *moved = false;
   for (int i = 0; i < count; ++i) {
     const Eigen::Vector3f diff = d - neighbour_offset(i);
     const float length = std::sqrt(diff.dot(diff));
     const float excess = length - limit * rest_length(i);
     if (excess > 0.f) {
       correction -= (0.5f * excess / length) * diff;
-      violated = true;
+      *moved = true;
     }
   }
-  if (!violated) return x;
-  return x + correction / static_cast<float>(count);
+  if (!*moved) return d;
+  return d + correction / static_cast<float>(count);
 }
 
 }  // namespace
@@ -1022,24 +1021,37 @@ void CpuSurfaceTracking::limitStrain() {
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   const OneRings& rings = mesh_->rings;
-  for (int k = 0; k < options_.strain_limit_steps; ++k) {
-    scratch_ = positions_;
-    for (int v = 0; v < n; ++v) {
-      if (!(mesh_->iso_values[v] > 0) || rings.representative[v] != v) continue;
-      const uint32_t begin = rings.offsets[v];
-      const int count = static_cast<int>(rings.offsets[v + 1] - begin);
-      const Eigen::Vector3f x = positions_.row(v).transpose();
-      const Eigen::Vector3f d = x - skinned_.row(v).transpose();
-      auto neighbour_offset = [&](int i) -> Eigen::Vector3f {
-        const int u = rings.neighbours[begin + i];
-        return (positions_.row(u) - skinned_.row(u)).transpose();
-      };
-      auto rest_length = [&](int i) { return mesh_->ring_lengths[begin + i]; };
-      scratch_.row(v) = strainLimitStep(x, d, count, neighbour_offset,
-                                        rest_length, options_.strain_limit)
-                            .transpose();
+  if (options_.strain_limit_steps > 0) {
+    Matrix3Xf offsets = positions_ - skinned_;
+    Matrix3Xf next = offsets;
+    for (int k = 0; k < options_.strain_limit_steps; ++k) {
+      for (int v = 0; v < n; ++v) {
+        if (!(mesh_->iso_values[v] > 0) || rings.representative[v] != v)
+          continue;
+        const uint32_t begin = rings.offsets[v];
+        auto neighbour_offset = [&](int i) -> Eigen::Vector3f {
+          return offsets.row(rings.neighbours[begin + i]).transpose();
+        };
+        auto rest_length = [&](int i) {
+          return mesh_->ring_lengths[begin + i];
+        };
+        bool moved = false;
+        next.row(v) =
+            strainLimitStep(offsets.row(v).transpose(),
+                            static_cast<int>(rings.offsets[v + 1] - begin),
+                            neighbour_offset, rest_length,
+                            options_.strain_limit, &moved)
+                .transpose();
+      }
+      offsets.swap(next);
     }
-    positions_.swap(scratch_);
+    // s + d where the steps changed the offset, x itself where they did not
+    // (bit for bit).
+    for (int v = 0; v < n; ++v) {
+      const Eigen::RowVector3f d0 = positions_.row(v) - skinned_.row(v);
+      if (offsets.row(v) != d0)
+        positions_.row(v) = skinned_.row(v) + offsets.row(v);
+    }
   }
   times_.strain_limit_ms += millisecondsSince(start);
 }

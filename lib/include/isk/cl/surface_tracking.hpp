@@ -138,8 +138,8 @@ class ClSurfaceTracking {
   cl::Buffer lane_offsets_, lane_params_, lane_masks_;
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
-      limit_strain_, copy_duplicates_, triangle_normals_kernel_,
-      normals_kernel_;
+      limit_strain_, strain_offsets_, strain_positions_, copy_duplicates_,
+      triangle_normals_kernel_, normals_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
@@ -185,6 +185,9 @@ class ClSurfaceTracking {
   int beta_current_ = 0;          // beta_[beta_current_]: the last diffusion's
   cl::Buffer fallback_normals_;   // begin's skinned normals (a handle)
   cl::Buffer skinned_positions_;  // begin's skinned positions (a handle)
+  // The strain limit's offsets (float triples) and moved flags (uchar),
+  // ping-pong.
+  cl::Buffer strain_offsets_buffers_[2], strain_moved_[2];
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;
