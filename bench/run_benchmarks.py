@@ -597,7 +597,7 @@ def implicit_section(results):
 LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
           "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
-          "sigma-0.7", "sigma-1")
+          "sigma-0.7", "sigma-1", "no-fold-guard")
 
 
 def moved(run):
@@ -665,7 +665,11 @@ def levers_section(results):
               "projection's step size (eq. 4, `SurfaceTrackingOptions::"
               "sigma`) s instead of the paper's 0.35, which the paper "
               "calls a compromise between speed of convergence and "
-              "accuracy. 'moved' says how far each frame lies from the "
+              "accuracy; and 'no-fold-guard': every switch on, and the "
+              "strain limit without its fold guard "
+              "(`SurfaceTrackingOptions::fold_guard`, docs/algorithm.md), "
+              "so that 'frame / all' below 1 is what the guard costs. "
+              "'moved' says how far each frame lies from the "
               "paired frame of the same pose: the mean and the largest "
               "distance of a vertex, over the rest mesh's bounding-box "
               "diagonal, and the share of vertices farther than 1e-3 of "

@@ -45,6 +45,11 @@
 #define ISK_LANE_WIDTH 8
 #define ISK_LANE_ROWS 24
 
+// The fold guard's ramp: a triangle's fold weight grows from 0 to 1 as the
+// cosines of its three tests pass their threshold by this much
+// (tracking/fold_guard.cl, CpuSurfaceTracking::weighFolds).
+#define ISK_FOLD_RAMP 0.1f
+
 // --- Active vertices: reach[v], the first diffusion step that may change v
 #define ISK_REACH_NONE 255
 #define ISK_REACH_MAX 254

@@ -30,16 +30,19 @@ __kernel void track_strain_offsets(const uint vertex_count,
 }
 
 // One Jacobi step for one vertex (strainLimitStep): its offset d moved, for
-// each ring edge whose offsets differ by more than limit * rest length, by
-// half the excess towards the neighbour's offset, over the ring's size
-// (continuous as an edge starts to violate). Only the tracked vertices (the
-// first march_count, march order) move.
+// each ring edge whose offsets differ by more than its limit * rest length,
+// by half the excess towards the neighbour's offset, over the ring's size
+// (continuous as an edge starts to violate). An edge's limit goes from limit
+// to fold_limit by the larger fold weight of its ends (the fold guard,
+// tracking/fold_guard.cl). Only the tracked vertices (the first
+// march_count, march order) move.
 __kernel void track_limit_strain(
     const uint vertex_count, const uint march_count,
     __global const float* offsets_in, __global float* offsets_out,
     __global const uchar* moved_in, __global uchar* moved_out,
     __global const uint* ring_offsets, __global const int* ring_neighbours,
-    __global const float* ring_lengths, const float limit) {
+    __global const float* ring_lengths, const float limit,
+    __global const float* fold_weights, const float fold_limit) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   const float3 d = vload3(v, offsets_in);
@@ -52,11 +55,15 @@ __kernel void track_limit_strain(
   if (active) {
     float3 correction = (float3)(0.0f);
     bool violated = false;
+    const float fold_v = fold_weights[v];
     for (uint i = begin; i < end; ++i) {
-      const float3 diff = d - vload3(ring_neighbours[i], offsets_in);
+      const int u = ring_neighbours[i];
+      const float3 diff = d - vload3(u, offsets_in);
       const float length =
           sqrt(diff.x * diff.x + diff.y * diff.y + diff.z * diff.z);
-      const float excess = length - limit * ring_lengths[i];
+      const float w = fmax(fold_v, fold_weights[u]);
+      const float edge_limit = limit + w * (fold_limit - limit);
+      const float excess = length - edge_limit * ring_lengths[i];
       if (excess > 0.0f) {
         correction -= (0.5f * excess / length) * diff;
         violated = true;

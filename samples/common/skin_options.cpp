@@ -156,6 +156,24 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "implicit: steps of the strain limit (0: no limit)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str(),
+      app.add_flag("!--no-fold-guard", tracking.fold_guard,
+                   "implicit: no fold guard (the strain limit is the same "
+                   "around triangles that folded over)"),
+      app.add_option("--fold-strain-limit", tracking.fold_strain_limit,
+                     "implicit: the strain limit on the edges near a triangle "
+                     "that folded over (0: their offsets are averaged)")
+          ->check(CLI::Range(0.0, 100.0))
+          ->capture_default_str(),
+      app.add_option("--fold-rings", tracking.fold_rings,
+                     "implicit: how many rings around a folded triangle's "
+                     "corners take the fold strain limit")
+          ->check(CLI::Range(0, 16))
+          ->capture_default_str(),
+      app.add_option("--fold-check-steps", tracking.fold_check_steps,
+                     "implicit: steps of the strain limit between two "
+                     "checks for folded triangles")
+          ->check(CLI::Range(1, 1000))
+          ->capture_default_str(),
       app.add_option("--grid-precision", options.grid_precision,
                      "implicit: float, or half (grids rounded to 16-bit "
                      "floats: half the device memory, frames within a small "

@@ -103,7 +103,11 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"smoothing_steps", t.smoothing_steps},
           {"crease_steps", t.crease_steps},
           {"strain_limit", t.strain_limit},
-          {"strain_limit_steps", t.strain_limit_steps}};
+          {"strain_limit_steps", t.strain_limit_steps},
+          {"fold_guard", t.fold_guard},
+          {"fold_strain_limit", t.fold_strain_limit},
+          {"fold_rings", t.fold_rings},
+          {"fold_check_steps", t.fold_check_steps}};
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <random>
 #include <string>
 
+#include "abi.h"
 #include "isk/core/error.hpp"
 #include "isk/fields/composition_operator.hpp"
 #include "isk/implicit_skinner.hpp"
@@ -144,6 +145,23 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
   o.strain_limit_steps = -1;
   EXPECT_NE(o.validate().reason().find("strain_limit_steps"),
             std::string::npos);
+  for (const float limit : {-1.f, NAN, 200.f}) {
+    o = {};
+    o.fold_strain_limit = limit;
+    EXPECT_NE(o.validate().reason().find("fold_strain_limit"),
+              std::string::npos);
+  }
+  for (const int rings : {-1, 17}) {
+    o = {};
+    o.fold_rings = rings;
+    EXPECT_NE(o.validate().reason().find("fold_rings"), std::string::npos);
+  }
+  for (const int steps : {0, 1001}) {
+    o = {};
+    o.fold_check_steps = steps;
+    EXPECT_NE(o.validate().reason().find("fold_check_steps"),
+              std::string::npos);
+  }
   for (const float entry : {1e-4f, 1.f, NAN}) {  // below the tolerance, ...
     o = {};
     o.contact_entry = entry;
@@ -466,6 +484,147 @@ TEST(SurfaceTracking, StrainLimitPullsSpikesBackOnAssets) {
     const Rig& rig = test::rigNamed(name);
     checkStrainLimit(rig, *sharedFields(name), clipPoses(rig, 5)[2],
                      rig.mesh.vertexCount() > 1000);
+  }
+}
+
+// Triangles folded over by the fold guard's rule (a weight above 0): the
+// normal at `x` opposes both the skinned triangle's and the sum of the
+// corners' skinned normals, and the skinned triangle does not oppose that sum
+// by more than the ramp (representatives' rows).
+int foldedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
+                    const Matrix3Xf& skinned, const Matrix3Xf& normals) {
+  int folded = 0;
+  auto normal = [&](const Matrix3Xf& p, const int* r) {
+    return Eigen::Vector3f(
+        (p.row(r[1]) - p.row(r[0])).cross(p.row(r[2]) - p.row(r[0])));
+  };
+  for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
+    int r[3];
+    for (int c = 0; c < 3; ++c)
+      r[c] = mesh.rings.representative[mesh.triangles(t, c)];
+    const Eigen::Vector3f now = normal(x, r).normalized();
+    const Eigen::Vector3f was = normal(skinned, r).normalized();
+    const Eigen::Vector3f expected =
+        Eigen::Vector3f(normals.row(r[0]) + normals.row(r[1]) +
+                        normals.row(r[2]))
+            .normalized();
+    if (now.dot(expected) < 0.f && now.dot(was) < 0.f &&
+        was.dot(expected) > -ISK_FOLD_RAMP)
+      ++folded;
+  }
+  return folded;
+}
+
+// The fold guard on a fold made by hand: the tracked vertex with the most
+// neighbours dragged tangentially three of its ring's longest edges, past its
+// ring, so that its fan folds over. Without the guard the strain limit (2
+// rest lengths) leaves triangles folded; with it no more stay folded, none
+// on a mesh of more than 1000 vertices (on the coarsest asset, RiggedSimple,
+// the averaged drag folds a few triangles further on: measured 12 without,
+// 6 with), the dragged vertex comes back further, and OpenCL does the same as
+// the reference. The skinned frame itself has no fold weight and passes
+// unchanged.
+void checkFoldGuard(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
+                    const TransformList& pose) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
+  const auto context = test::sharedContext();
+  // Both backends from the device's skinned frame (see checkStages).
+  ClSkinning device_dqs(context, rig.mesh, rig.weights,
+                        rig.skeleton.jointCount());
+  device_dqs.run(SkinningMethod::kDualQuaternion, pose, false);
+  Matrix3Xf skinned, normals;
+  device_dqs.readPositions(skinned);
+  device_dqs.readNormals(normals);
+  SurfaceTrackingOptions unguarded;
+  unguarded.fold_guard = false;
+  CpuSurfaceTracking with(f->grids, &f->composition, mesh);
+  CpuSurfaceTracking without(f->grids, &f->composition, mesh, unguarded);
+  with.begin(pose, skinned, normals);
+  without.begin(pose, skinned, normals);
+  const std::vector<TrackState> states = with.states();
+  const Matrix4Xf prev = with.previousGradients();
+  with.limitStrain();
+  EXPECT_EQ(with.foldedTriangleCount(), 0);
+  EXPECT_EQ(
+      *std::max_element(with.foldWeights().begin(), with.foldWeights().end()),
+      0.f);
+  EXPECT_EQ(test::largestRowDistance(with.positions(), skinned).distance, 0.f);
+  const OneRings& rings = mesh.rings;
+  int fold = -1;
+  for (int v = 0; v < mesh.vertexCount(); ++v)
+    if (states[v] == TrackState::kMarching &&
+        rings.kinds[v] == RingKind::kClosed &&
+        (fold < 0 || rings.offsets[v + 1] - rings.offsets[v] >
+                         rings.offsets[fold + 1] - rings.offsets[fold]))
+      fold = v;
+  if (fold < 0) {  // an open sheet of a few vertices (quad_skin)
+    std::cout << "[ fold guard ] no tracked closed ring to fold: only the "
+                 "skinned frame checked\n";
+    return;
+  }
+  float longest = 0;
+  for (uint32_t i = rings.offsets[fold]; i < rings.offsets[fold + 1]; ++i)
+    longest = std::max(longest, mesh.ring_lengths[i]);
+  const Eigen::Vector3f normal = normals.row(fold).transpose();
+  const Eigen::Vector3f along =
+      (skinned.row(rings.neighbours[rings.offsets[fold]]) - skinned.row(fold))
+          .transpose();
+  Eigen::Vector3f tangent = along - along.dot(normal) * normal;
+  ASSERT_GT(tangent.norm(), 0.f);
+  tangent.normalize();
+  Matrix3Xf folded = skinned;
+  folded.row(fold) += 3.f * longest * tangent.transpose();
+  const int folds_made = foldedTriangles(mesh, folded, skinned, normals);
+  ASSERT_GT(folds_made, 0) << "no fold made at vertex " << fold;
+  detail::TrackingTestAccess::setState(with, folded, states, prev);
+  detail::TrackingTestAccess::setState(without, folded, states, prev);
+  with.limitStrain();
+  without.limitStrain();
+  const int folds_without =
+      foldedTriangles(mesh, without.positions(), skinned, normals);
+  const int folds_with =
+      foldedTriangles(mesh, with.positions(), skinned, normals);
+  std::cout << "[ fold guard ] vertex " << fold
+            << " dragged 3 edge lengths: " << folds_made
+            << " folded triangles, " << folds_without
+            << " after the strain limit alone, " << folds_with
+            << " with the fold guard\n";
+  EXPECT_GT(folds_without, 0);
+  EXPECT_LE(folds_with, folds_without);
+  if (mesh.vertexCount() > 1000) EXPECT_EQ(folds_with, 0);
+  EXPECT_LT((with.positions().row(fold) - skinned.row(fold)).norm(),
+            (without.positions().row(fold) - skinned.row(fold)).norm());
+  // OpenCL: the same steps from the same state.
+  ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
+                           FieldStorage::kAuto, &f->composition);
+  ClSurfaceTracking cl(fields, mesh);
+  cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
+  detail::TrackingTestAccess::setState(cl, folded, states, prev);
+  cl.limitStrain();
+  Matrix3Xf positions;
+  cl.readPositions(positions);
+  const test::RowMismatch worst =
+      test::largestRowDistance(positions, with.positions());
+  EXPECT_LE(worst.distance,
+            stageTolerance(*context) * rig.boundingBoxDiagonal())
+      << "OpenCL against the reference: vertex " << worst.row;
+}
+
+TEST(SurfaceTracking, FoldGuardSmoothsFoldsOutOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkFoldGuard(rig, sharedFields(name), clipPoses(rig, 5).back());
+  }
+}
+
+TEST(SurfaceTracking, FoldGuardSmoothsFoldsOutOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("fold guard on assets");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkFoldGuard(rig, sharedFields(name), clipPoses(rig, 5)[2]);
   }
 }
 
@@ -952,7 +1111,18 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
                            storage, &f->composition);
   ClSurfaceTracking cl(fields, mesh);
-  cpu.begin(pose, dqs.positions(), dqs.normals());
+  // Both from the device's skinned frame: the stages are compared on the
+  // same input (the fold guard's test is a sign, which skinning's rounding
+  // can flip at a triangle that has just folded; the frames' tests below
+  // take each backend's own skinning).
+  Matrix3Xf device_positions, device_normals;
+  device_dqs.readPositions(device_positions);
+  device_dqs.readNormals(device_normals);
+  EXPECT_LT(
+      test::largestRowDistance(device_positions, dqs.positions()).distance,
+      tolerance)
+      << "skinning";
+  cpu.begin(pose, device_positions, device_normals);
   cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
 
   Matrix3Xf positions;
@@ -1570,10 +1740,10 @@ TEST(HalfPrecisionGrids, OpenClFramesMatchTheReferenceOnAssets) {
 }
 
 // Half against float grids, OpenCL frames of a clip: the mean distance
-// within 2e-4 of the diagonal, and at most 1% of the vertices beyond 1e-3
+// within 2e-4 of the diagonal, and at most 4% of the vertices beyond 1e-3
 // of it (a vertex whose stop test sits on its threshold may stop a step
-// earlier or later; measured on the assets: mean at most 1.4e-4, at most
-// 0.3% beyond).
+// earlier or later, and takes its neighbours along; measured on the assets:
+// mean at most 1e-4).
 void checkHalfNearFloat(const std::string& name, int frames) {
   const Rig& rig = test::rigNamed(name);
   const float diagonal = rig.boundingBoxDiagonal();
@@ -1595,9 +1765,11 @@ void checkHalfNearFloat(const std::string& name, int frames) {
     count += a.rows();
   }
   EXPECT_LE(sum / count, 2e-4 * diagonal);
-  // The strain limit moves a vertex's ring with it: a stop that rounding
-  // moves by a step takes a few neighbours along.
-  EXPECT_LE(beyond, 0.02 * count);
+  // The strain limit moves a vertex's ring with it, and the fold guard the
+  // rings around a fold: a stop that rounding moves by a step takes its
+  // neighbours along (measured: 13 of 384 on RiggedSimple, the coarsest
+  // asset; at most 0.9% on the others).
+  EXPECT_LE(beyond, 0.04 * count);
   std::printf(
       "[half] %s: distance to the float frames: mean %.3g, largest "
       "%.3g (of the diagonal), %.3g%% of the vertices beyond 1e-3\n",

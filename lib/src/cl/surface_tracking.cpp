@@ -94,6 +94,12 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   limit_strain_ = cl::Kernel(strain_limit, "track_limit_strain");
   strain_offsets_ = cl::Kernel(strain_limit, "track_strain_offsets");
   strain_positions_ = cl::Kernel(strain_limit, "track_strain_positions");
+  cl::Program fold_guard = context_->program("tracking/fold_guard");
+  fold_frames_kernel_ = cl::Kernel(fold_guard, "track_fold_frames");
+  weigh_triangles_ = cl::Kernel(fold_guard, "track_weigh_triangles");
+  weigh_folds_ = cl::Kernel(fold_guard, "track_weigh_folds");
+  grow_folds_ = cl::Kernel(fold_guard, "track_grow_folds");
+  commit_folds_ = cl::Kernel(fold_guard, "track_commit_folds");
   copy_duplicates_ = cl::Kernel(finish, "track_copy_duplicates");
   triangle_normals_kernel_ =
       cl::Kernel(context_->program("normals"), "triangle_normals");
@@ -122,6 +128,9 @@ void ClSurfaceTracking::uploadLayout(
   reverse_offsets_ = uploadReadOnly(*context_, layout.reverse_offsets, &bytes_);
   reverse_neighbours_ =
       uploadReadOnly(*context_, layout.reverse_neighbours, &bytes_);
+  fold_corners_ = uploadReadOnly(*context_, layout.fold_corners, &bytes_);
+  fold_offsets_ = uploadReadOnly(*context_, layout.fold_offsets, &bytes_);
+  fold_triangles_ = uploadReadOnly(*context_, layout.fold_triangles, &bytes_);
 }
 
 void ClSurfaceTracking::allocateBroadPhase(const TrackingMesh& mesh) {
@@ -183,12 +192,23 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   for (auto& b : beta_) b = rw(2 * n * sizeof(float));
   for (auto& b : strain_offsets_buffers_) b = rw(floats3);
   for (auto& b : strain_moved_) b = rw(n);
+  for (auto& b : fold_scratch_) b = rw(n * sizeof(float));
+  fold_weights_ = rw(n * sizeof(float));
+  // 0 until the first check, and always without the guard (where they
+  // still reach the steps, multiplied by 0).
+  context_->queue().enqueueFillBuffer(fold_weights_, 0.0f, 0,
+                                      n * sizeof(float));
+  const size_t triangles = static_cast<size_t>(std::max(triangle_count_, 1));
+  fold_frames_ = rw(triangles * 8 * sizeof(float));
+  triangle_weights_ = rw(triangles * sizeof(float));
   reach_ = rw(n);
   const size_t triangle_floats3 =
       3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
   triangle_normals_ = rw(triangle_floats3);
-  bytes_ += 5 * floats3 + 4 * n + 2 * n * 4 * sizeof(float) +
-            4 * n * sizeof(float) + triangle_floats3;
+  bytes_ +=
+      5 * floats3 + 4 * n + 3 * n * sizeof(float) +
+      9 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1)) +
+      2 * n * 4 * sizeof(float) + 4 * n * sizeof(float) + triangle_floats3;
 }
 
 void ClSurfaceTracking::addTime(Stage stage, double ms) {
@@ -554,8 +574,53 @@ void ClSurfaceTracking::limitStrain() {
     strain_offsets_.setArg(4, strain_offsets_buffers_[0]);
     strain_offsets_.setArg(5, strain_moved_[0]);
     launch(strain_offsets_, kStrainLimit);
+    const cl_uint triangles = static_cast<cl_uint>(triangle_count_);
+    if (options_.fold_guard && triangle_count_ > 0) {
+      fold_frames_kernel_.setArg(0, triangles);
+      fold_frames_kernel_.setArg(1, skinned_positions_);
+      fold_frames_kernel_.setArg(2, fallback_normals_);
+      fold_frames_kernel_.setArg(3, begin_source_);
+      fold_frames_kernel_.setArg(4, fold_corners_);
+      fold_frames_kernel_.setArg(5, fold_frames_);
+      launch(fold_frames_kernel_, kStrainLimit, triangle_count_);
+    }
     int b = 0;
     for (int k = 0; k < options_.strain_limit_steps; ++k) {
+      if (options_.fold_guard && triangle_count_ > 0 &&
+          k % options_.fold_check_steps == 0) {
+        // The weights from this step's offsets: per triangle, per vertex,
+        // fold_rings rings out, then committed (where one changed, the
+        // vertex is marked as moved: its edges' limits changed).
+        weigh_triangles_.setArg(0, triangles);
+        weigh_triangles_.setArg(1, strain_offsets_buffers_[b]);
+        weigh_triangles_.setArg(2, skinned_positions_);
+        weigh_triangles_.setArg(3, begin_source_);
+        weigh_triangles_.setArg(4, fold_corners_);
+        weigh_triangles_.setArg(5, fold_frames_);
+        weigh_triangles_.setArg(6, triangle_weights_);
+        launch(weigh_triangles_, kStrainLimit, triangle_count_);
+        weigh_folds_.setArg(0, n);
+        weigh_folds_.setArg(1, fold_offsets_);
+        weigh_folds_.setArg(2, fold_triangles_);
+        weigh_folds_.setArg(3, triangle_weights_);
+        weigh_folds_.setArg(4, fold_scratch_[0]);
+        launch(weigh_folds_, kStrainLimit);
+        int m = 0;
+        for (int r = 0; r < options_.fold_rings; ++r) {
+          grow_folds_.setArg(0, n);
+          grow_folds_.setArg(1, fold_scratch_[m]);
+          grow_folds_.setArg(2, fold_scratch_[1 - m]);
+          grow_folds_.setArg(3, ring_offsets_);
+          grow_folds_.setArg(4, ring_neighbours_);
+          launch(grow_folds_, kStrainLimit);
+          m = 1 - m;
+        }
+        commit_folds_.setArg(0, n);
+        commit_folds_.setArg(1, fold_scratch_[m]);
+        commit_folds_.setArg(2, fold_weights_);
+        commit_folds_.setArg(3, strain_moved_[b]);
+        launch(commit_folds_, kStrainLimit);
+      }
       limit_strain_.setArg(0, n);
       limit_strain_.setArg(1, static_cast<cl_uint>(march_count_));
       limit_strain_.setArg(2, strain_offsets_buffers_[b]);
@@ -566,6 +631,10 @@ void ClSurfaceTracking::limitStrain() {
       limit_strain_.setArg(7, ring_neighbours_);
       limit_strain_.setArg(8, ring_lengths_);
       limit_strain_.setArg(9, options_.strain_limit);
+      // Without the guard both limits are strain_limit: the weights are moot.
+      limit_strain_.setArg(10, fold_weights_);
+      limit_strain_.setArg(11, options_.fold_guard ? options_.fold_strain_limit
+                                                   : options_.strain_limit);
       launch(limit_strain_, kStrainLimit);
       b = 1 - b;
     }

@@ -106,6 +106,25 @@ void reverseRows(TrackingDeviceLayout* out) {
       out->reverse_neighbours[fill[near[i]]++] = k;
 }
 
+void foldRows(const TrackingMesh& mesh, TrackingDeviceLayout* out) {
+  const int n = static_cast<int>(out->order.size());
+  const TriangleMatrix& triangles = mesh.triangles;
+  out->fold_corners.resize(3 * static_cast<size_t>(triangles.rows()));
+  out->fold_offsets.assign(n + 1, 0);
+  for (Eigen::Index t = 0; t < triangles.rows(); ++t)
+    for (int c = 0; c < 3; ++c) {
+      const int k = out->slot_of[mesh.rings.representative[triangles(t, c)]];
+      out->fold_corners[3 * t + c] = k;
+      ++out->fold_offsets[k + 1];
+    }
+  for (int k = 0; k < n; ++k) out->fold_offsets[k + 1] += out->fold_offsets[k];
+  out->fold_triangles.resize(out->fold_corners.size());
+  std::vector<uint32_t> fill(out->fold_offsets.begin(),
+                             out->fold_offsets.end() - 1);
+  for (size_t i = 0; i < out->fold_corners.size(); ++i)
+    out->fold_triangles[fill[out->fold_corners[i]]++] = static_cast<int>(i / 3);
+}
+
 }  // namespace
 
 TrackingDeviceLayout trackingDeviceLayout(
@@ -118,6 +137,7 @@ TrackingDeviceLayout trackingDeviceLayout(
   nearRows(lengths, &out);
   out.ring_lengths = std::move(lengths);
   reverseRows(&out);
+  foldRows(mesh, &out);
   return out;
 }
 

@@ -44,6 +44,13 @@ struct TrackingDeviceLayout {
   // contact or crease vertex pushes its reach (active vertices).
   std::vector<uint32_t> reverse_offsets;
   std::vector<int> reverse_neighbours;
+  // The fold guard: each triangle's corners as the device indices of their
+  // representatives (#F by 3), and per device index the triangles with a
+  // corner in its welded group (compressed rows, #V + 1 offsets; empty for
+  // seam copies).
+  std::vector<int> fold_corners;
+  std::vector<uint32_t> fold_offsets;
+  std::vector<int> fold_triangles;
 };
 
 // The tuning's march_order off keeps the tracked vertices by index instead

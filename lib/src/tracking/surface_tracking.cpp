@@ -107,20 +107,21 @@ Eigen::Vector3f smoothingStep(const Eigen::Vector3f& x,
 
 // The strain limit's Jacobi step for one vertex: its offset d from its
 // skinned position moved, for each ring edge whose offsets differ by more
-// than limit * rest length, by half the excess towards the neighbour's
+// than limit(i) * rest length, by half the excess towards the neighbour's
 // offset, over the ring's size (not over the violated edges: the step stays
-// continuous as an edge starts to violate). neighbour_offset(i) and
-// rest_length(i): the ring's i-th. *moved: whether an edge was violated.
-template <typename Offsets, typename Lengths>
+// continuous as an edge starts to violate). neighbour_offset(i),
+// rest_length(i) and limit(i): the ring's i-th edge. *moved: whether an edge
+// was violated.
+template <typename Offsets, typename Lengths, typename Limits>
 Eigen::Vector3f strainLimitStep(const Eigen::Vector3f& d, int count,
                                 Offsets neighbour_offset, Lengths rest_length,
-                                float limit, bool* moved) {
+                                Limits limit, bool* moved) {
   Eigen::Vector3f correction = Eigen::Vector3f::Zero();
   *moved = false;
   for (int i = 0; i < count; ++i) {
     const Eigen::Vector3f diff = d - neighbour_offset(i);
     const float length = std::sqrt(diff.dot(diff));
-    const float excess = length - limit * rest_length(i);
+    const float excess = length - limit(i) * rest_length(i);
     if (excess > 0.f) {
       correction -= (0.5f * excess / length) * diff;
       *moved = true;
@@ -128,6 +129,57 @@ Eigen::Vector3f strainLimitStep(const Eigen::Vector3f& d, int count,
   }
   if (!*moved) return d;
   return d + correction / static_cast<float>(count);
+}
+
+// The fold guard's test. A triangle's normal (corners p0, p1, p2,
+// counter-clockwise; unnormalized), written out term by term as in the
+// kernel.
+Eigen::Vector3f triangleNormal(const Eigen::Vector3f& p0,
+                               const Eigen::Vector3f& p1,
+                               const Eigen::Vector3f& p2) {
+  const Eigen::Vector3f a = p1 - p0, b = p2 - p0;
+  return Eigen::Vector3f(a.y() * b.z() - a.z() * b.y(),
+                         a.z() * b.x() - a.x() * b.z(),
+                         a.x() * b.y() - a.y() * b.x());
+}
+float dot3(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return a.x() * b.x() + a.y() * b.y() + a.z() * b.z();
+}
+// x / ISK_FOLD_RAMP clamped to [0, 1].
+float foldRamp(float x) {
+  return std::min(std::max(x / ISK_FOLD_RAMP, 0.f), 1.f);
+}
+
+// The fold guard's frame of a triangle (corners q0, q1, q2 skinned, their
+// skinned normals summed in `normal_sum`): its skinned unit normal, the unit
+// normal sum, and the allowance, how far the skinned triangle does not
+// oppose the sum (0 where skinning folded it itself, as in a deep bend's
+// crease: not the tracking's to undo; 0 for a degenerate triangle).
+FoldFrame foldFrame(const Eigen::Vector3f& q0, const Eigen::Vector3f& q1,
+                    const Eigen::Vector3f& q2,
+                    const Eigen::Vector3f& normal_sum) {
+  FoldFrame out;
+  const Eigen::Vector3f skinned = triangleNormal(q0, q1, q2);
+  const float skinned_length = std::sqrt(dot3(skinned, skinned));
+  const float sum_length = std::sqrt(dot3(normal_sum, normal_sum));
+  if (!(skinned_length > 0.f && sum_length > 0.f)) return out;
+  out.skinned = skinned / skinned_length;
+  out.expected = normal_sum / sum_length;
+  out.allowance = foldRamp(dot3(out.skinned, out.expected) + ISK_FOLD_RAMP);
+  return out;
+}
+// A triangle's fold weight, in [0, 1]: how far its normal `now` opposes
+// both its skinned unit normal and the unit sum of its corners' skinned
+// normals (`frame`, from foldFrame), each cosine ramping over ISK_FOLD_RAMP
+// so that rounding moves the weight by rounding, not from 0 to 1; times the
+// frame's allowance. Both directions: a triangle at a hard edge, whose
+// corners' normals are another face's, is not folded by a small offset.
+float foldWeight(const Eigen::Vector3f& now, const FoldFrame& frame) {
+  if (!(frame.allowance > 0.f)) return 0.f;
+  const float length = std::sqrt(dot3(now, now));
+  if (!(length > 0.f)) return 0.f;  // degenerate: no direction
+  return foldRamp(-dot3(now, frame.expected) / length) *
+         foldRamp(-dot3(now, frame.skinned) / length) * frame.allowance;
 }
 
 }  // namespace
@@ -180,6 +232,14 @@ Validation SurfaceTrackingOptions::validate() const {
   if (strain_limit_steps < 0 || strain_limit_steps > 1000)
     return bad("strain_limit_steps " + std::to_string(strain_limit_steps) +
                ": expected 0..1000");
+  if (!(fold_strain_limit >= 0 && fold_strain_limit <= 100))
+    return bad("fold_strain_limit " + std::to_string(fold_strain_limit) +
+               ": expected a fraction of the rest length in [0, 100]");
+  if (fold_rings < 0 || fold_rings > 16)
+    return bad("fold_rings " + std::to_string(fold_rings) + ": expected 0..16");
+  if (fold_check_steps < 1 || fold_check_steps > 1000)
+    return bad("fold_check_steps " + std::to_string(fold_check_steps) +
+               ": expected 1..1000");
   const int cells = detail::tuningOf(*this).neighbourhood_cells;
   if (cells < 0 || cells > 16)
     return bad("neighbourhood_cells " + std::to_string(cells) +
@@ -1016,15 +1076,67 @@ void CpuSurfaceTracking::smooth() {
   times_.smoothing_ms += millisecondsSince(start);
 }
 
+void CpuSurfaceTracking::frameFolds() {
+  const OneRings& rings = mesh_->rings;
+  const TriangleMatrix& triangles = mesh_->triangles;
+  fold_frames_.resize(triangles.rows());
+  for (Eigen::Index t = 0; t < triangles.rows(); ++t) {
+    int r[3];
+    for (int c = 0; c < 3; ++c) r[c] = rings.representative[triangles(t, c)];
+    fold_frames_[t] = foldFrame(
+        skinned_.row(r[0]).transpose(), skinned_.row(r[1]).transpose(),
+        skinned_.row(r[2]).transpose(),
+        (fallback_normals_.row(r[0]) + fallback_normals_.row(r[1]) +
+         fallback_normals_.row(r[2]))
+            .transpose());
+  }
+}
+
+void CpuSurfaceTracking::weighFolds(const Matrix3Xf& offsets) {
+  const int n = mesh_->vertexCount();
+  const OneRings& rings = mesh_->rings;
+  const TriangleMatrix& triangles = mesh_->triangles;
+  fold_weights_.assign(n, 0.f);
+  folded_triangles_ = 0;
+  for (Eigen::Index t = 0; t < triangles.rows(); ++t) {
+    int r[3];
+    Eigen::Vector3f p[3];
+    for (int c = 0; c < 3; ++c) {
+      r[c] = rings.representative[triangles(t, c)];
+      p[c] = (skinned_.row(r[c]) + offsets.row(r[c])).transpose();
+    }
+    const float weight =
+        foldWeight(triangleNormal(p[0], p[1], p[2]), fold_frames_[t]);
+    if (!(weight > 0.f)) continue;
+    ++folded_triangles_;
+    for (const int c : r) fold_weights_[c] = std::max(fold_weights_[c], weight);
+  }
+  // fold_rings rings around the corners (one-rings are symmetric): the
+  // largest weight of the vertex and its ring.
+  for (int k = 0; k < options_.fold_rings; ++k) {
+    fold_scratch_ = fold_weights_;
+    for (int v = 0; v < n; ++v)
+      for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+        fold_scratch_[v] =
+            std::max(fold_scratch_[v], fold_weights_[rings.neighbours[i]]);
+    fold_weights_.swap(fold_scratch_);
+  }
+}
+
 void CpuSurfaceTracking::limitStrain() {
   checkBegun("limitStrain");
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   const OneRings& rings = mesh_->rings;
+  fold_weights_.assign(n, 0.f);
+  folded_triangles_ = 0;
   if (options_.strain_limit_steps > 0) {
     Matrix3Xf offsets = positions_ - skinned_;
     Matrix3Xf next = offsets;
+    if (options_.fold_guard) frameFolds();
     for (int k = 0; k < options_.strain_limit_steps; ++k) {
+      if (options_.fold_guard && k % options_.fold_check_steps == 0)
+        weighFolds(offsets);
       for (int v = 0; v < n; ++v) {
         if (!(mesh_->iso_values[v] > 0) || rings.representative[v] != v)
           continue;
@@ -1035,12 +1147,18 @@ void CpuSurfaceTracking::limitStrain() {
         auto rest_length = [&](int i) {
           return mesh_->ring_lengths[begin + i];
         };
+        const float fold_v = fold_weights_[v];
+        auto limit = [&](int i) {
+          const float w =
+              std::max(fold_v, fold_weights_[rings.neighbours[begin + i]]);
+          return options_.strain_limit +
+                 w * (options_.fold_strain_limit - options_.strain_limit);
+        };
         bool moved = false;
         next.row(v) =
             strainLimitStep(offsets.row(v).transpose(),
                             static_cast<int>(rings.offsets[v + 1] - begin),
-                            neighbour_offset, rest_length,
-                            options_.strain_limit, &moved)
+                            neighbour_offset, rest_length, limit, &moved)
                 .transpose();
       }
       offsets.swap(next);

@@ -49,7 +49,7 @@ class ClSurfaceTracking {
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
-  void limitStrain();       // the strain limit's Jacobi steps
+  void limitStrain();       // the strain limit's steps, with the fold guard
   void finish();            // seam copies and normals
 
   // The whole frame; returns when the device is done, with lastTimes().
@@ -138,8 +138,9 @@ class ClSurfaceTracking {
   cl::Buffer lane_offsets_, lane_params_, lane_masks_;
   int vertex_count_ = 0;
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
-      limit_strain_, strain_offsets_, strain_positions_, copy_duplicates_,
-      triangle_normals_kernel_, normals_kernel_;
+      limit_strain_, strain_offsets_, strain_positions_, fold_frames_kernel_,
+      weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
+      copy_duplicates_, triangle_normals_kernel_, normals_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
@@ -188,6 +189,12 @@ class ClSurfaceTracking {
   // The strain limit's offsets (float triples) and moved flags (uchar),
   // ping-pong.
   cl::Buffer strain_offsets_buffers_[2], strain_moved_[2];
+  // The fold guard: the layout's fold rows (TrackingDeviceLayout), the
+  // triangles' frames (two float4 each) and weights of the frame, the
+  // vertices' weights the steps read and two scratch buffers (float per
+  // vertex) a check computes them in.
+  cl::Buffer fold_corners_, fold_offsets_, fold_triangles_, fold_frames_,
+      triangle_weights_, fold_weights_, fold_scratch_[2];
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;

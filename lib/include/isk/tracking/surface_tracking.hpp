@@ -41,6 +41,17 @@
 // to different places (spikes, fold-overs) are brought back together, while
 // an offset that is smooth across the mesh (the contact surface of a
 // well-fitted fold, the bulge) passes unchanged.
+// Fold guard (fold_guard, on by default; our addition, see
+// docs/algorithm.md): within the strain limit's steps, a triangle has folded
+// over when its normal opposes both its skinned normal and its corners'
+// skinned normals, unless skinning folded it itself (as in a deep bend's
+// crease). Its fold weight ramps from 0 to 1 past those thresholds, and
+// each vertex takes the largest weight within fold_rings rings. A ring edge
+// takes a limit between strain_limit and fold_strain_limit by the larger
+// weight of its ends (0 by default: offsets averaged across a fold), the
+// weights found again every fold_check_steps steps. A contact surface keeps
+// its sharp offsets, since it flattens the skin without turning it over;
+// the fold-overs of a poorly fitted coarse mesh are smoothed out.
 //
 // Contact by home field (home_contact, on by default; our addition, see
 // docs/algorithm.md): each vertex has a home field, the field of the
@@ -135,6 +146,13 @@ struct SurfaceTrackingOptions {
   // Jacobi steps that enforce it (0: no limit).
   float strain_limit = 2.f;
   int strain_limit_steps = 16;
+  // The fold guard (see above): on or off, the strain limit around a folded
+  // triangle, how many rings around its corners it reaches, and how many
+  // steps apart the folds are found again.
+  bool fold_guard = true;
+  float fold_strain_limit = 0.f;
+  int fold_rings = 2;
+  int fold_check_steps = 4;
   // Speed-only switches of the device's tracking and of the broad phase
   // (field neighbourhoods, march order, occupied cells, value bounds,
   // neighbourhood cells, lane tests, active vertices): the same frames
@@ -332,6 +350,16 @@ struct TrackingStageTimes {
   }
 };
 
+// The fold guard's per-frame data of one triangle (see above): its skinned
+// unit normal, the unit sum of its corners' skinned normals, and how far the
+// skinned triangle does not oppose that sum, in [0, 1] (0: skinning folded
+// it itself, or it is degenerate).
+struct FoldFrame {
+  Eigen::Vector3f skinned = Eigen::Vector3f::Zero();
+  Eigen::Vector3f expected = Eigen::Vector3f::Zero();
+  float allowance = 0.f;
+};
+
 // The CPU reference of a character's tracking. Keeps pointers to `fields`,
 // `composition` (may be null: union of all fields) and `mesh`: they must
 // outlive it.
@@ -354,7 +382,7 @@ class CpuSurfaceTracking {
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
-  void limitStrain();       // the strain limit's Jacobi steps
+  void limitStrain();       // the strain limit's steps, with the fold guard
   void finish();            // seam copies and normals
 
   // The whole frame: begin, rounds x (project, relax), smooth, limitStrain,
@@ -375,6 +403,13 @@ class CpuSurfaceTracking {
   // the unit normal; zero before any step): the relaxation's tangent plane
   // and mu, so that relaxation samples no field.
   const Matrix4Xf& relaxFrames() const { return relax_frames_; }
+  // #V in [0, 1]: the fold guard's weight of each vertex at its last check
+  // (after limitStrain()): the largest fold weight of the triangles within
+  // fold_rings rings of it.
+  const std::vector<float>& foldWeights() const { return fold_weights_; }
+  // How many triangles the fold guard's last check found folded over (a
+  // weight above 0).
+  int foldedTriangleCount() const { return folded_triangles_; }
   // Milliseconds per stage of the last run().
   const TrackingStageTimes& lastTimes() const { return times_; }
   const SurfaceTrackingOptions& options() const { return options_; }
@@ -410,6 +445,14 @@ class CpuSurfaceTracking {
   Matrix4Xf prev_;          // previous unit gradient, w = 1 when set
   Matrix4Xf relax_frames_;  // see relaxFrames()
   std::vector<float> beta_, beta_scratch_;
+  // The fold guard: the frame's triangle frames (fold_frames_, from the
+  // skinned positions and normals), then the weights (fold_weights_) from
+  // the offsets (#V by 3).
+  void frameFolds();
+  void weighFolds(const Matrix3Xf& offsets);
+  std::vector<FoldFrame> fold_frames_;
+  std::vector<float> fold_weights_, fold_scratch_;
+  int folded_triangles_ = 0;
   TrackingStageTimes times_;
   bool begun_ = false;  // a frame's state exists (begin() was called)
 };
