@@ -163,6 +163,7 @@ TrackingMesh concatenateTrackingMeshes(
       append(m.iso_values, out.iso_values);
       shift(m.home_field, field0, out.home_field);
       append(m.home_margin, out.home_margin);
+      append(m.home_surface, out.home_surface);
       for (TrackingMesh::PartnerPair pair : m.partner_pairs) {
         pair.field_a += field0;
         pair.field_b += field0;

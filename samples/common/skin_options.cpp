@@ -147,6 +147,13 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "contact surface")
           ->check(CLI::Range(1e-6, 0.999))
           ->capture_default_str(),
+      app.add_option("--contact-home-slack", tracking.contact_home_slack,
+                     "implicit: how far (field units) below the vertex's "
+                     "part's surface value the other part's field may be "
+                     "and the vertex still start the march to a contact "
+                     "(1: no such test)")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")

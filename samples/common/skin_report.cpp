@@ -99,6 +99,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"relaxation", t.relaxation},
           {"home_contact", t.home_contact},
           {"contact_entry", t.contact_entry},
+          {"contact_home_slack", t.contact_home_slack},
           {"beta_diffusion", t.beta_diffusion},
           {"smoothing_steps", t.smoothing_steps},
           {"crease_steps", t.crease_steps},

@@ -167,6 +167,12 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
     o.contact_entry = entry;
     EXPECT_NE(o.validate().reason().find("contact_entry"), std::string::npos);
   }
+  for (const float slack : {-0.01f, 1.01f, NAN}) {
+    o = {};
+    o.contact_home_slack = slack;
+    EXPECT_NE(o.validate().reason().find("contact_home_slack"),
+              std::string::npos);
+  }
   for (const int cells : {-1, 17}) {
     detail::TrackingTuning tuning;
     tuning.neighbourhood_cells = cells;
@@ -790,6 +796,58 @@ TEST(TrackingMesh, MarchOrderHoldsEveryTrackedVertexOnceOnAssets) {
   for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkMarchOrder(test::rigNamed(name), test::implicitFieldsOf(name));
+  }
+}
+
+// Each part's surface value (TrackingMesh::home_surface): the iso value at
+// the middle (index n / 2) of its n tracked vertices' sorted iso values, so
+// at most n / 2 of them are below it and n - n / 2 - 1 above; every vertex
+// of the part holds the same value.
+void checkHomeSurface(const Rig& rig, const ImplicitFields& fields) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
+  ASSERT_EQ(static_cast<int>(mesh.home_surface.size()), mesh.vertexCount());
+  std::vector<float> surface(mesh.field_count, -1.f);
+  std::vector<int> below(mesh.field_count, 0), above(mesh.field_count, 0),
+      count(mesh.field_count, 0);
+  for (int v = 0; v < mesh.vertexCount(); ++v) {
+    const int home = mesh.home_field[v];
+    if (home < 0) {
+      EXPECT_EQ(mesh.home_surface[v], 0.f) << "vertex " << v;
+      continue;
+    }
+    ASSERT_LT(home, mesh.field_count);
+    if (surface[home] < 0) surface[home] = mesh.home_surface[v];
+    ASSERT_EQ(mesh.home_surface[v], surface[home]) << "vertex " << v;
+    if (!(mesh.iso_values[v] > 0)) continue;
+    ++count[home];
+    below[home] += mesh.iso_values[v] < surface[home];
+    above[home] += mesh.iso_values[v] > surface[home];
+  }
+  int parts = 0;
+  for (int i = 0; i < mesh.field_count; ++i) {
+    if (count[i] == 0) continue;
+    ++parts;
+    EXPECT_GT(surface[i], 0.f) << "field " << i;
+    EXPECT_LT(surface[i], 1.f) << "field " << i;
+    EXPECT_LE(below[i], count[i] / 2) << "field " << i;
+    EXPECT_LE(above[i], count[i] - count[i] / 2 - 1) << "field " << i;
+  }
+  EXPECT_GT(parts, 0);
+}
+
+TEST(TrackingMesh, HomeSurfaceIsItsPartsMedianIsoOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    checkHomeSurface(test::rigNamed(name), test::implicitFieldsOf(name));
+  }
+}
+
+TEST(TrackingMesh, HomeSurfaceIsItsPartsMedianIsoOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("home surface on assets");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    checkHomeSurface(test::rigNamed(name), test::implicitFieldsOf(name));
   }
 }
 

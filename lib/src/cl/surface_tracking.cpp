@@ -118,6 +118,7 @@ void ClSurfaceTracking::uploadLayout(
   kinds_ = uploadReadOnly(*context_, layout.kinds, &bytes_);
   home_fields_ = uploadReadOnly(*context_, layout.home_fields, &bytes_);
   home_margins_ = uploadReadOnly(*context_, layout.home_margins, &bytes_);
+  home_floors_ = uploadReadOnly(*context_, layout.home_floors, &bytes_);
   step_limits_ = uploadReadOnly(*context_, layout.step_limits, &bytes_);
   ring_offsets_ = uploadReadOnly(*context_, layout.ring_offsets, &bytes_);
   ring_neighbours_ = uploadReadOnly(*context_, layout.ring_neighbours, &bytes_);
@@ -463,6 +464,7 @@ void ClSurfaceTracking::project(int steps) {
     fields_->setCompositionArgs(project_, ISK_PROJECT_ARG_COMPOSITION);
     project_.setArg(ISK_PROJECT_ARG_RELAX_FRAMES, relax_frames_);
     project_.setArg(ISK_PROJECT_ARG_OTHER_POSITIONS, positions_[1 - current_]);
+    project_.setArg(ISK_PROJECT_ARG_HOME_FLOORS, home_floors_);
     launch(project_, kProjection, march_count_);
   } catch (const cl::Error& e) {
     throwClError(

@@ -46,17 +46,19 @@ bool contactStop(const Eigen::Vector3f& unit, const Eigen::Vector4f& prev,
 }
 
 // The contact by home field: a vertex that another part's field has
-// entered (by `entered` over its rest margin, more than contact_entry)
-// marches to the contact surface c = entered + contact_gap = 0 instead of
-// its iso value, and stops there. kContactMarchNone: not held, the paper's
+// entered (by `entered` over its rest margin, more than contact_entry) up
+// to home_floor (h + entered >= its part's surface value less
+// contact_home_slack) marches to the contact surface c = entered +
+// contact_gap = 0 instead of its iso value, and stops there.
+// kContactMarchNone: not held, the paper's
 // march goes on; kContactMarchStepped: x stepped towards the contact surface;
 // otherwise the state the vertex stops in.
 constexpr int kContactMarchNone = -1;
 constexpr int kContactMarchStepped = -2;
 int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
                    float f, float iso, const HomeSamples& home, float entered,
-                   const SurfaceTrackingOptions& options, float max_step,
-                   float min_gradient) {
+                   float home_floor, const SurfaceTrackingOptions& options,
+                   float max_step, float min_gradient) {
   bool marching_to_contact = *prev_kind == ISK_GRADIENT_TO_CONTACT;
   // Out of the other part's grip (left through the surface): back to the
   // paper's march.
@@ -66,7 +68,8 @@ int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
   }
   if (!(home.home[0] > 0.f &&
         (marching_to_contact ||
-         (f > iso + options.tolerance && entered > options.contact_entry))))
+         (f > iso + options.tolerance && entered > options.contact_entry &&
+          home.home[0] + entered >= home_floor))))
     return kContactMarchNone;
   const float c = entered + options.contact_gap;
   if (marching_to_contact && c <= options.tolerance)
@@ -205,6 +208,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(contact_entry >= tolerance && contact_entry < 1))
     return bad("contact_entry " + std::to_string(contact_entry) +
                ": expected field units in [tolerance, 1)");
+  if (!(contact_home_slack >= 0 && contact_home_slack <= 1))
+    return bad("contact_home_slack " + std::to_string(contact_home_slack) +
+               ": expected field units in [0, 1]");
   if (!(contact_gap >= 0 && contact_gap < 0.5f))
     return bad("contact_gap " + std::to_string(contact_gap) +
                ": expected field units in [0, 0.5)");
@@ -345,8 +351,9 @@ std::vector<TrackingMesh::PartnerPair> partnerPairs(
   return out;
 }
 
-// Each vertex's home field (its part's field, -1: none) and rest margin (how
-// far the other parts' fields exceed it at rest, where they already do).
+// Each vertex's home field (its part's field, -1: none), rest margin (how
+// far the other parts' fields exceed it at rest, where they already do) and
+// its part's surface value.
 void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
                           TrackingMesh* out_mesh) {
   TrackingMesh& out = *out_mesh;
@@ -377,6 +384,25 @@ void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
       out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
     }
   }
+  // Each part's surface value: the median of its tracked vertices' iso
+  // values (a poor fit puts the skin off the field's 0.5).
+  out.home_surface.assign(vertex_count, 0.f);
+  std::vector<std::vector<float>> by_field(std::max(field_count, 0));
+  for (int v = 0; v < vertex_count; ++v)
+    if (out.home_field[v] >= 0 && out.home_field[v] < field_count &&
+        out.iso_values[v] > 0)
+      by_field[out.home_field[v]].push_back(out.iso_values[v]);
+  std::vector<float> median(by_field.size(), 0.f);
+  for (size_t i = 0; i < by_field.size(); ++i) {
+    std::vector<float>& values = by_field[i];
+    if (values.empty()) continue;
+    const auto middle = values.begin() + values.size() / 2;
+    std::nth_element(values.begin(), middle, values.end());
+    median[i] = *middle;
+  }
+  for (int v = 0; v < vertex_count; ++v)
+    if (out.home_field[v] >= 0 && out.home_field[v] < field_count)
+      out.home_surface[v] = median[out.home_field[v]];
 }
 
 // 21 bits spread to every third bit, for a Morton code.
@@ -753,6 +779,11 @@ void splitNeighbourhoodsIntoCells(
   }
 }
 
+float homeFloor(const TrackingMesh& mesh, int vertex,
+                const SurfaceTrackingOptions& options) {
+  return mesh.home_surface[vertex] - options.contact_home_slack;
+}
+
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
                         int vertex, const Eigen::Vector4f* per_field) {
   HomeSamples out;
@@ -932,9 +963,9 @@ void CpuSurfaceTracking::project(int steps) {
       if (options_.home_contact && mesh_->home_field[v] >= 0) {
         entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
         Eigen::Vector4f frame = relax_frames_.row(v).transpose();
-        const int march =
-            marchToContact(&x, &prev_(v, 3), &frame, f, iso, home, entered,
-                           options_, max_step, min_gradient);
+        const int march = marchToContact(
+            &x, &prev_(v, 3), &frame, f, iso, home, entered,
+            homeFloor(*mesh_, v, options_), options_, max_step, min_gradient);
         if (march == kContactMarchStepped) {
           relax_frames_.row(v) = frame.transpose();
           positions_.row(v) = x.transpose();

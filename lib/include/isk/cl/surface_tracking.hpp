@@ -143,10 +143,10 @@ class ClSurfaceTracking {
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
-      home_margins_, partners_, neighbour_offsets_, neighbour_entries_,
-      neighbour_pair_offsets_, neighbour_pairs_, ring_offsets_,
-      ring_neighbours_, ring_weights_, ring_lengths_, normal_offsets_,
-      normal_triangles_;
+      home_margins_, home_floors_, partners_, neighbour_offsets_,
+      neighbour_entries_, neighbour_pair_offsets_, neighbour_pairs_,
+      ring_offsets_, ring_neighbours_, ring_weights_, ring_lengths_,
+      normal_offsets_, normal_triangles_;
   // The mesh's triangles (#F by 3) and their cross products of the frame.
   int triangle_count_ = 0;
   cl::Buffer triangles_, triangle_normals_;

@@ -57,7 +57,8 @@
 // docs/algorithm.md): each vertex has a home field, the field of the
 // bone it was partitioned to. A vertex that geometric skinning pushed into
 // another part (the largest other field o exceeds its home field h by more
-// than at rest: o - h - margin > contact_entry, with f > iso) marches instead
+// than at rest: o - h - margin > contact_entry, with f > iso, and o - margin
+// reaches its part's surface value less contact_home_slack) marches instead
 // to the contact surface between the two parts, by Newton steps on c = o - h -
 // margin + contact_gap along grad(o - h), and stops there as a contact. The
 // paper's march would carry such a vertex out through the far side of the other
@@ -130,6 +131,12 @@ struct SurfaceTrackingOptions {
   // (docs/algorithm.md measures it: raised, poorly fitted characters keep
   // their volume and well-fitted folds lose their contact).
   float contact_entry = 1e-3f;
+  // A vertex starts that march only where the other part's field, less the
+  // rest margin, reaches the vertex's part's surface value
+  // (TrackingMesh::home_surface) minus this (field units): below it the two
+  // fields overlap outside both surfaces, a poor fit's overlap, and the march
+  // there would pull the skin in (docs/algorithm.md). 1: no such test.
+  float contact_home_slack = 0.03f;
   int beta_diffusion = 1;   // eq. 7: diffusion iterations of beta
   int smoothing_steps = 8;  // eq. 7: Laplacian steps
   // Localized: diffusion and Laplacian steps use only the neighbours within
@@ -199,6 +206,9 @@ struct TrackingMesh {
   // #V: max(0, o - h) at the bind pose, o the largest other field (all of
   // them: partners may become other parts when their joint turns).
   std::vector<float> home_margin;
+  // #V: the median rest iso value of the tracked vertices whose home field
+  // is the vertex's (its part's surface value), 0 where it has none.
+  std::vector<float> home_surface;
   std::vector<PartnerPair> partner_pairs;
   int field_count = 0;
   // Rest length of each one-ring edge, aligned with rings.neighbours.
@@ -326,6 +336,11 @@ struct HomeSamples {
 };
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
                         int vertex, const Eigen::Vector4f* per_field);
+// The value of the other part's field (less the rest margin) below which
+// vertex v does not start the march to a contact:
+// home_surface[v] - options.contact_home_slack.
+float homeFloor(const TrackingMesh& mesh, int vertex,
+                const SurfaceTrackingOptions& options);
 
 // One frame's per-vertex results and counts.
 struct TrackingCounts {
