@@ -617,11 +617,10 @@ void checkIsoValues(const std::string& name) {
     ASSERT_LE(fields.iso_values[v], 1.f);
     if (std::abs(fields.iso_values[v] - 0.5f) < 0.2f) ++near_half;
   }
-  // Vertices sit close to the 0.5 iso of the union, except where parts
-  // overlap (the union takes the larger field): animation_with_skeleton.fbx
-  // is made of boxes that overlap at every joint.
-  const double share = name == "animation_with_skeleton.fbx" ? 0.65 : 0.9;
-  EXPECT_GT(near_half, share * rig.mesh.vertexCount());
+  // Vertices sit close to the 0.5 iso of the union.
+  std::cout << "[ iso      ] " << name << ": " << near_half << " of "
+            << rig.mesh.vertexCount() << " vertices within 0.2 of 0.5\n";
+  EXPECT_GT(near_half, 0.9 * rig.mesh.vertexCount());
   for (int v : fields.outside_vertices) EXPECT_EQ(fields.iso_values[v], 0.f);
 }
 TEST(ImplicitFields, IsoValuesOnProceduralRigs) {
@@ -853,6 +852,49 @@ Rig cylinderWithMovedWeights(int from, int to, int keep) {
   rig.weights = SkinWeights::fromLists(lists);
   rig.weights.sortByWeight();
   return rig;
+}
+
+// A surface wound inside out (a file's flipped winding) is fitted from its
+// outward side: its samples' normals point the same way as those of the rig
+// wound outward, its iso values are theirs up to the samples drawn (the
+// corners' order moves them: on average, a few fits differ by up to 0.1 at
+// the joints), and a warning names the mesh.
+TEST(ImplicitFields, InsideOutSurfaceIsFittedFromItsOutwardSide) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = rigNamed(name);
+    Rig flipped = rig;
+    for (int t = 0; t < flipped.mesh.triangleCount(); ++t)
+      std::swap(flipped.mesh.triangles(t, 1), flipped.mesh.triangles(t, 2));
+    ImplicitFieldsOptions options;
+    options.cache = false;
+    const ImplicitFields& a = implicitFieldsOf(name);
+    const ImplicitFields b = buildImplicitFields(flipped, options);
+    EXPECT_TRUE(hasWarning(b, "inside out", "mesh '"));
+    EXPECT_FALSE(hasWarning(a, "inside out", ""));
+    // Each sample's normal against the outward field's gradient there (f
+    // grows inward): opposed on every sample.
+    ASSERT_EQ(a.fields.size(), b.samples.size());
+    for (size_t f = 0; f < a.fields.size(); ++f) {
+      const HermiteSamples s = b.samples[f].surface;
+      for (int k = 0; k < s.size(); ++k) {
+        double value = 0;
+        Eigen::Vector3d gradient;
+        a.fields[f].evaluate(s.positions[k], value, gradient);
+        ASSERT_LT(gradient.dot(s.normals[k]), 0)
+            << "field " << f << " sample " << k;
+      }
+    }
+    ASSERT_EQ(a.iso_values.size(), b.iso_values.size());
+    double sum = 0;
+    int near_half = 0;
+    for (size_t v = 0; v < a.iso_values.size(); ++v) {
+      sum += std::abs(a.iso_values[v] - b.iso_values[v]);
+      near_half += std::abs(b.iso_values[v] - 0.5f) < 0.2f;
+    }
+    EXPECT_LT(sum / a.iso_values.size(), 0.01);
+    EXPECT_GT(near_half, 0.9 * a.iso_values.size());
+  }
 }
 
 TEST(ImplicitFields, BoneWithoutVerticesGetsNoFieldAndAWarning) {

@@ -17,6 +17,7 @@
 #include "isk/core/mesh.hpp"
 #include "isk/core/one_ring.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/core/surface_orientation.hpp"
 #include "isk/core/types.hpp"
 #include "isk/core/validation.hpp"
 #include "isk/core/vertex_normals.hpp"

@@ -70,18 +70,21 @@ int OneRings::count(RingKind kind) const {
   return static_cast<int>(std::count(kinds.begin(), kinds.end(), kind));
 }
 
+std::vector<int> weldedRepresentatives(const Matrix3Xf& positions) {
+  const int vertex_count = static_cast<int>(positions.rows());
+  std::vector<int> representative(vertex_count);
+  std::unordered_map<PositionKey, int, PositionHash> first;
+  first.reserve(vertex_count * 2);
+  for (int v = 0; v < vertex_count; ++v)
+    representative[v] = first.emplace(keyOf(positions, v), v).first->second;
+  return representative;
+}
+
 OneRings OneRings::build(const Matrix3Xf& positions,
                          const TriangleMatrix& triangles) {
   const int vertex_count = static_cast<int>(positions.rows());
   OneRings rings;
-  rings.representative.resize(vertex_count);
-  {
-    std::unordered_map<PositionKey, int, PositionHash> first;
-    first.reserve(vertex_count * 2);
-    for (int v = 0; v < vertex_count; ++v)
-      rings.representative[v] =
-          first.emplace(keyOf(positions, v), v).first->second;
-  }
+  rings.representative = weldedRepresentatives(positions);
   for (Eigen::Index t = 0; t < triangles.rows(); ++t)
     for (int c = 0; c < 3; ++c)
       if (triangles(t, c) < 0 || triangles(t, c) >= vertex_count)

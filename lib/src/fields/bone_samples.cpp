@@ -41,7 +41,8 @@ HermiteSamples BoneSamples::all() const {
 }
 
 BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
-                           int joint, const BoneSamplingOptions& options) {
+                           int joint, const BoneSamplingOptions& options,
+                           const SurfaceOrientation* orientation) {
   BoneSamples out;
   out.joint = joint;
   if (!partition.hasPart(joint)) return out;
@@ -59,7 +60,8 @@ BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
     const Eigen::Vector3d a = position(mesh, mesh.triangles(t, 0));
     const Eigen::Vector3d b = position(mesh, mesh.triangles(t, 1));
     const Eigen::Vector3d c = position(mesh, mesh.triangles(t, 2));
-    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const Eigen::Vector3d n = (b - a).cross(c - a) *
+                              (orientation ? orientation->triangle_sign[t] : 1);
     for (int i = 0; i < 3; ++i) vertex_normals[mesh.triangles(t, i)] += n;
     area += 0.5 * n.norm();
     cumulative_area.push_back(area);
@@ -99,7 +101,9 @@ BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
     Eigen::Vector3d n = (1 - u - v) * vertex_normals[ia].normalized() +
                         u * vertex_normals[ib].normalized() +
                         v * vertex_normals[ic].normalized();
-    if (!(n.norm() > 1e-9) || !n.allFinite()) n = (b - a).cross(c - a);
+    if (!(n.norm() > 1e-9) || !n.allFinite())
+      n = (b - a).cross(c - a) *
+          (orientation ? orientation->triangle_sign[t] : 1);
     if (!segment.degenerate) {
       // Culling planes stand only at ends shared with another part: a free
       // end (a fingertip, the end of a tube) keeps the samples that close it.

@@ -11,6 +11,7 @@
 #include "core/parallel_for.hpp"
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/core/surface_orientation.hpp"
 #include "isk/fields/field_cache.hpp"
 
 namespace isk {
@@ -21,7 +22,7 @@ using detail::parallelFor;
 // The part's vertices with their geometric normals, as samples: the last
 // resort for parts too small for Poisson-disk sampling.
 HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
-                             int joint) {
+                             int joint, const SurfaceOrientation& orientation) {
   std::vector<Eigen::Vector3d> normals(mesh.vertexCount(),
                                        Eigen::Vector3d::Zero());
   for (int t : partition.part_triangles[joint]) {
@@ -31,7 +32,8 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
         mesh.positions.row(mesh.triangles(t, 1)).transpose().cast<double>();
     const Eigen::Vector3d c =
         mesh.positions.row(mesh.triangles(t, 2)).transpose().cast<double>();
-    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const Eigen::Vector3d n =
+        (b - a).cross(c - a) * orientation.triangle_sign[t];
     for (int i = 0; i < 3; ++i) normals[mesh.triangles(t, i)] += n;
   }
   // Vertices split along seams share a position: one sample each, with the
@@ -164,6 +166,14 @@ std::vector<BoneSamples> samplingStage(const BuildInputs& in,
   const Skeleton& skeleton = in.rig.skeleton;
   const std::vector<int>& joints = out.partition.field_joints;
   std::vector<BoneSamples> samples(joints.size());
+  const Mesh& mesh = in.rig.mesh;
+  const SurfaceOrientation orientation = SurfaceOrientation::of(mesh);
+  for (const SurfaceOrientation::InsideOut& c : orientation.inside_out)
+    out.warnings.push_back(
+        "the closed surface through " + mesh.describeVertex(c.vertex) + " (" +
+        std::to_string(c.triangle_count) +
+        " triangles) is wound inside out (its triangles face inwards): its "
+        "fields are fitted to its outward side");
   for (size_t i = 0; i < joints.size(); ++i) {
     const int j = joints[i];
     const std::string name = "joint '" + skeleton.joints[j].name + "'";
@@ -171,17 +181,17 @@ std::vector<BoneSamples> samplingStage(const BuildInputs& in,
     if (const auto it = in.options.joint_samples.find(skeleton.joints[j].name);
         it != in.options.joint_samples.end())
       sampling.target_samples = it->second;
-    samples[i] = sampleBonePart(in.rig.mesh, out.partition, j, sampling);
+    samples[i] = sampleBonePart(mesh, out.partition, j, sampling, &orientation);
     if (samples[i].all().size() < 4 && samples[i].culled > 0) {
       BoneSamplingOptions uncut = sampling;
       uncut.culling_h = 0;
-      samples[i] = sampleBonePart(in.rig.mesh, out.partition, j, uncut);
+      samples[i] = sampleBonePart(mesh, out.partition, j, uncut, &orientation);
       out.warnings.push_back(name +
                              ": fewer than 4 samples after culling; "
                              "sampled without culling planes");
     }
     if (samples[i].all().size() < 4) {
-      samples[i].surface = vertexSamples(in.rig.mesh, out.partition, j);
+      samples[i].surface = vertexSamples(mesh, out.partition, j, orientation);
       out.warnings.push_back(
           name + ": part too small for Poisson-disk sampling (" +
           std::to_string(out.partition.part_vertices[j].size()) +

@@ -37,6 +37,10 @@ enum class RingKind : uint8_t {
 
 const char* ringKindName(RingKind kind);  // "closed", "boundary", ...
 
+// #V: for each vertex of `positions` (#V by 3), the smallest index at the
+// same position (bitwise-equal floats): the welded mesh's vertex.
+std::vector<int> weldedRepresentatives(const Matrix3Xf& positions);
+
 // The one-ring of every vertex, in compressed rows.
 struct OneRings {
   std::vector<int> representative;  // #V: smallest index at the same spot

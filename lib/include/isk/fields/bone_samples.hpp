@@ -6,7 +6,8 @@
 //   (a fixed seed per joint: the same rig gives the same samples), kept in
 //   turn when no kept sample lies closer than 0.75 * sqrt(area / target).
 //   Normals are the geometric vertex normals interpolated across the
-//   triangle.
+//   triangle, turned outward where the surface is wound inside out
+//   (SurfaceOrientation).
 // - Culling: samples whose position along the bone is not within
 //   (h, 1 - h) are dropped (eq. 2; h = 0.05 by default), at the ends that
 //   touch another part only: a free end (a fingertip, the end of a tube)
@@ -22,6 +23,7 @@
 #include <vector>
 
 #include "isk/core/mesh.hpp"
+#include "isk/core/surface_orientation.hpp"
 #include "isk/fields/bone_partition.hpp"
 #include "isk/fields/hrbf.hpp"
 
@@ -48,9 +50,12 @@ struct BoneSamples {
 };
 
 // Samples the part of `joint` (a skeleton index) of `mesh` (the rig's rest
-// mesh, as partitioned by `partition`). An empty part gives no samples.
-// Deterministic for a given seed; does not throw for valid inputs.
+// mesh, as partitioned by `partition`). `orientation`: the mesh's outward
+// side (SurfaceOrientation::of(mesh)); null takes the winding as it is. An
+// empty part gives no samples. Deterministic for a given seed; does not
+// throw for valid inputs.
 BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
-                           int joint, const BoneSamplingOptions& options = {});
+                           int joint, const BoneSamplingOptions& options = {},
+                           const SurfaceOrientation* orientation = nullptr);
 
 }  // namespace isk
