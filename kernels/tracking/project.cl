@@ -308,15 +308,19 @@ ISK_INLINE bool contact_stop(const float3 unit, const float4 prev,
 // entered (by `entered` over its rest margin, more than contact_entry) up
 // to home_floor (h + entered >= its part's surface value less
 // contact_home_slack) marches to the contact surface c = entered +
-// contact_gap = 0 instead of its iso value, and stops there. ISK_CONTACT_MARCH_NONE: not held, the paper's march goes on;
-// ISK_CONTACT_MARCH_STEPPED: x stepped towards the contact surface;
-// otherwise the state the vertex stops in.
+// contact_gap = 0 instead of its iso value, and stops there; unless its
+// home field h is below home_minimum (its part's surface value less
+// contact_home_reach): skinning carried it out of its own part, and it stops
+// where it is, converged. ISK_CONTACT_MARCH_NONE: not held, the paper's
+// march goes on; ISK_CONTACT_MARCH_STEPPED: x stepped towards the contact
+// surface; otherwise the state the vertex stops in.
 #define ISK_CONTACT_MARCH_NONE (-1)
 #define ISK_CONTACT_MARCH_STEPPED (-2)
 ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
                                 const float f, const float iso, const float4 h,
                                 const float4 other, const float entered,
                                 const float home_floor,
+                                const float home_minimum,
                                 const float contact_gap, const float tolerance,
                                 const float contact_entry, const float sigma,
                                 const float max_step,
@@ -330,6 +334,7 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
         (to_contact || (f > iso + tolerance && entered > contact_entry &&
                         h.x + entered >= home_floor))))
     return ISK_CONTACT_MARCH_NONE;
+  if (!to_contact && !(h.x >= home_minimum)) return ISK_TRACK_CONVERGED;
   const float c = entered + contact_gap;
   if (to_contact && c <= tolerance) return ISK_TRACK_CONTACT;
   const float3 gc = other.yzw - h.yzw;
@@ -356,7 +361,7 @@ __kernel void track_project(const uint march_count, __global float* positions,
                             ISK_COMPOSITION_PARAMS,
                             __global float4* relax_frames,
                             __global float* positions_other,
-                            __global const float* home_floors) {
+                            __global const float2* home_floors) {
   // Work-item v marches vertex v: the device's order puts the tracked
   // vertices first (march_count of them), by home field and rest locality.
   const uint v = get_global_id(0);
@@ -370,7 +375,8 @@ __kernel void track_project(const uint march_count, __global float* positions,
   const int home_field = home_fields[v];
   const int home = (contact_flags & ISK_CONTACT_HOME_FIELD) ? home_field : -1;
   const float margin = home >= 0 ? home_margins[v] : 0.0f;
-  const float home_floor = home >= 0 ? home_floors[v] : 0.0f;
+  // The other part's floor and the home field's minimum of the contact march.
+  const float2 home_floor = home >= 0 ? home_floors[v] : (float2)(0.0f, 0.0f);
   // Without the contact by home field the other parts' value is not used.
   const float other_slack = home >= 0 ? margin + step_params.z : INFINITY;
   const float2 limits = step_limits[v];
@@ -392,7 +398,8 @@ __kernel void track_project(const uint march_count, __global float* positions,
     if (home >= 0) {
       entered = other.x - h.x - margin;
       const int march = march_to_contact(
-          &x, &prev, &frame, sample.x, iso, h, other, entered, home_floor,
+          &x, &prev, &frame, sample.x, iso, h, other, entered, home_floor.x,
+          home_floor.y,
           contact_gap,
           step_params.z, step_params.w, step_params.x, max_step, min_gradient);
       if (march == ISK_CONTACT_MARCH_STEPPED) continue;

@@ -154,6 +154,13 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "(1: no such test)")
           ->check(CLI::Range(0.0, 1.0))
           ->capture_default_str(),
+      app.add_option("--contact-home-reach", tracking.contact_home_reach,
+                     "implicit: how far (field units) below its part's "
+                     "surface value the vertex's own part's field may be for "
+                     "it to start the march to a contact; further, it stops "
+                     "where skinning put it (1: no such test)")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")

@@ -172,6 +172,10 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
     o.contact_home_slack = slack;
     EXPECT_NE(o.validate().reason().find("contact_home_slack"),
               std::string::npos);
+    o = {};
+    o.contact_home_reach = slack;
+    EXPECT_NE(o.validate().reason().find("contact_home_reach"),
+              std::string::npos);
   }
   for (const int cells : {-1, 17}) {
     detail::TrackingTuning tuning;
@@ -388,6 +392,121 @@ TEST(SurfaceTracking, HomeContactKeepsDeepFoldsFromCrossing) {
             << crossing_without << ", with contact by home field "
             << crossing_with << "\n";
   EXPECT_GT(crossing_without, 10 * std::max(crossing_with, 1));
+}
+
+// The contact home reach: a vertex that another part's field has entered
+// (enough for the march to a contact) while its own part's field is below
+// its part's surface value less contact_home_reach -- skin that skinning
+// carried out of its own part -- stays where it is, on both backends; with
+// no such test (reach 1) it marches. The vertex is put at points inside
+// other parts (a vertex of another part moved inwards along its normal) and
+// the first point that meets the test is used; returns whether one did.
+bool checkHomeReach(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
+                    const TransformList& pose) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
+  const SurfaceTrackingOptions options;
+  const Matrix3Xf skinned =
+      geometric(rig, SkinningMethod::kDualQuaternion, pose);
+  const Matrix3Xf skinned_normals = [&] {
+    CpuSkinning s(rig.mesh, rig.weights, rig.skeleton.jointCount());
+    s.run(SkinningMethod::kDualQuaternion, pose, true);
+    return s.normals();
+  }();
+  const ComposedFieldSampler sampler(f->grids, pose, &f->composition);
+  const std::vector<int> partners = activePartners(mesh, pose);
+  const float depth = 0.01f * rig.boundingBoxDiagonal();
+  std::vector<Eigen::Vector4f> per_field(f->grids.fieldCount());
+  int vertex = -1;
+  Eigen::Vector3f point;
+  const int n = mesh.vertexCount();
+  const int stride = std::max(1, n / 400);
+  for (int u = 0; u < n && vertex < 0; u += stride) {
+    if (mesh.home_field[u] < 0) continue;
+    const Eigen::Vector3f p =
+        skinned.row(u).transpose() - depth * skinned_normals.row(u).transpose();
+    const float value = sampler.sample(p, per_field.data())[0];
+    for (int v = 0; v < n && vertex < 0; ++v) {
+      if (!(mesh.iso_values[v] > 0) || mesh.rings.representative[v] != v ||
+          mesh.home_field[v] < 0 || mesh.home_field[v] == mesh.home_field[u])
+        continue;
+      const HomeSamples home =
+          homeSamples(mesh, partners.data(), v, per_field.data());
+      const float entered = home.other[0] - home.home[0] - mesh.home_margin[v];
+      if (home.home[0] > 0.f &&
+          value > mesh.iso_values[v] + options.tolerance &&
+          entered > options.contact_entry &&
+          home.home[0] + entered >= homeFloor(mesh, v, options) &&
+          home.home[0] < homeMinimum(mesh, v, options) - 1e-3f) {
+        vertex = v;
+        point = p;
+      }
+    }
+  }
+  if (vertex < 0) return false;
+  std::cout << "[ home reach ] vertex " << vertex << " put into another part\n";
+  auto projected = [&](const SurfaceTrackingOptions& o, TrackState* state) {
+    CpuSurfaceTracking tracking(f->grids, &f->composition, mesh, o);
+    tracking.begin(pose, skinned, skinned_normals);
+    Matrix3Xf positions = skinned;
+    positions.row(vertex) = point.transpose();
+    detail::TrackingTestAccess::setState(tracking, positions, tracking.states(),
+                                         tracking.previousGradients());
+    tracking.project(o.projection_steps);
+    *state = tracking.states()[vertex];
+    return Eigen::Vector3f(tracking.positions().row(vertex).transpose());
+  };
+  TrackState state;
+  EXPECT_EQ(projected(options, &state), point);
+  EXPECT_EQ(state, TrackState::kConverged);
+  SurfaceTrackingOptions no_reach;
+  no_reach.contact_home_reach = 1.f;
+  EXPECT_NE(projected(no_reach, &state), point) << "without the test";
+
+  const auto context = test::sharedContext();
+  ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
+                           FieldStorage::kAuto, &f->composition);
+  ClSurfaceTracking cl(fields, mesh);
+  ClSkinning device_dqs(context, rig.mesh, rig.weights,
+                        rig.skeleton.jointCount());
+  device_dqs.run(SkinningMethod::kDualQuaternion, pose, true);
+  cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
+  std::vector<TrackState> states;
+  cl.readStates(states);
+  Matrix4Xf prev;
+  cl.readPreviousGradients(prev);
+  Matrix3Xf positions = skinned;
+  positions.row(vertex) = point.transpose();
+  detail::TrackingTestAccess::setState(cl, positions, states, prev);
+  cl.project(options.projection_steps);
+  cl.readStates(states);
+  cl.readPositions(positions);
+  EXPECT_EQ(states[vertex], TrackState::kConverged) << "OpenCL";
+  EXPECT_EQ(Eigen::Vector3f(positions.row(vertex).transpose()), point)
+      << "OpenCL";
+  return true;
+}
+
+TEST(SurfaceTracking, HomeReachKeepsSkinCarriedOutOfItsPartOnProceduralRigs) {
+  const BentCylinder& c = bentCylinder();
+  EXPECT_TRUE(checkHomeReach(c.rig, c.fields, bendAt(c.rig, c.joint, 135)))
+      << "no point of the bent cylinder meets the test";
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkHomeReach(rig, sharedFields(name), clipPoses(rig, 5).back());
+  }
+}
+
+TEST(SurfaceTracking, HomeReachKeepsSkinCarriedOutOfItsPartOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("home reach on assets");
+  int checked = 0;
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checked += checkHomeReach(rig, sharedFields(name), clipPoses(rig, 5)[2]);
+  }
+  EXPECT_GT(checked, 0);
 }
 
 // The strain limit at a bent pose: an offset from skinning that is the same

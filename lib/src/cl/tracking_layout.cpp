@@ -51,9 +51,11 @@ void perVertexData(const TrackingMesh& mesh,
     out->kinds[k] = static_cast<uint8_t>(mesh.rings.kinds[order[k]]);
   out->home_fields = permuted(mesh.home_field, order);
   out->home_margins = permuted(mesh.home_margin, order);
-  out->home_floors.resize(n);
-  for (int k = 0; k < n; ++k)
-    out->home_floors[k] = homeFloor(mesh, order[k], options);
+  out->home_floors.resize(2 * static_cast<size_t>(n));
+  for (int k = 0; k < n; ++k) {
+    out->home_floors[2 * k] = homeFloor(mesh, order[k], options);
+    out->home_floors[2 * k + 1] = homeMinimum(mesh, order[k], options);
+  }
   const TrackingLengths lengths = trackingLengths(mesh, options);
   out->step_limits.resize(2 * static_cast<size_t>(n));
   out->smoothing_radii.resize(n);

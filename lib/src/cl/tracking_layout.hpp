@@ -26,7 +26,7 @@ struct TrackingDeviceLayout {
   // finish() takes each mesh vertex's result from).
   std::vector<int> representative, finish_source;
   std::vector<float> iso_values, home_margins;
-  std::vector<float> home_floors;  // homeFloor of each vertex
+  std::vector<float> home_floors;  // #slots by 2: homeFloor, homeMinimum
   std::vector<int> home_fields;
   std::vector<uint8_t> rules, kinds;  // RelaxationRule, RingKind
   std::vector<float> step_limits;     // 2 per vertex: max step, min gradient

@@ -49,7 +49,10 @@ bool contactStop(const Eigen::Vector3f& unit, const Eigen::Vector4f& prev,
 // entered (by `entered` over its rest margin, more than contact_entry) up
 // to home_floor (h + entered >= its part's surface value less
 // contact_home_slack) marches to the contact surface c = entered +
-// contact_gap = 0 instead of its iso value, and stops there.
+// contact_gap = 0 instead of its iso value, and stops there; unless its
+// home field h is below home_minimum (its part's surface value less
+// contact_home_reach): skinning carried it out of its own part, and it stops
+// where it is, converged.
 // kContactMarchNone: not held, the paper's
 // march goes on; kContactMarchStepped: x stepped towards the contact surface;
 // otherwise the state the vertex stops in.
@@ -57,8 +60,9 @@ constexpr int kContactMarchNone = -1;
 constexpr int kContactMarchStepped = -2;
 int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
                    float f, float iso, const HomeSamples& home, float entered,
-                   float home_floor, const SurfaceTrackingOptions& options,
-                   float max_step, float min_gradient) {
+                   float home_floor, float home_minimum,
+                   const SurfaceTrackingOptions& options, float max_step,
+                   float min_gradient) {
   bool marching_to_contact = *prev_kind == ISK_GRADIENT_TO_CONTACT;
   // Out of the other part's grip (left through the surface): back to the
   // paper's march.
@@ -71,6 +75,8 @@ int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
          (f > iso + options.tolerance && entered > options.contact_entry &&
           home.home[0] + entered >= home_floor))))
     return kContactMarchNone;
+  if (!marching_to_contact && !(home.home[0] >= home_minimum))
+    return static_cast<int>(TrackState::kConverged);
   const float c = entered + options.contact_gap;
   if (marching_to_contact && c <= options.tolerance)
     return static_cast<int>(TrackState::kContact);
@@ -210,6 +216,9 @@ Validation SurfaceTrackingOptions::validate() const {
                ": expected field units in [tolerance, 1)");
   if (!(contact_home_slack >= 0 && contact_home_slack <= 1))
     return bad("contact_home_slack " + std::to_string(contact_home_slack) +
+               ": expected field units in [0, 1]");
+  if (!(contact_home_reach >= 0 && contact_home_reach <= 1))
+    return bad("contact_home_reach " + std::to_string(contact_home_reach) +
                ": expected field units in [0, 1]");
   if (!(contact_gap >= 0 && contact_gap < 0.5f))
     return bad("contact_gap " + std::to_string(contact_gap) +
@@ -784,6 +793,11 @@ float homeFloor(const TrackingMesh& mesh, int vertex,
   return mesh.home_surface[vertex] - options.contact_home_slack;
 }
 
+float homeMinimum(const TrackingMesh& mesh, int vertex,
+                  const SurfaceTrackingOptions& options) {
+  return mesh.home_surface[vertex] - options.contact_home_reach;
+}
+
 HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
                         int vertex, const Eigen::Vector4f* per_field) {
   HomeSamples out;
@@ -965,7 +979,8 @@ void CpuSurfaceTracking::project(int steps) {
         Eigen::Vector4f frame = relax_frames_.row(v).transpose();
         const int march = marchToContact(
             &x, &prev_(v, 3), &frame, f, iso, home, entered,
-            homeFloor(*mesh_, v, options_), options_, max_step, min_gradient);
+            homeFloor(*mesh_, v, options_), homeMinimum(*mesh_, v, options_),
+            options_, max_step, min_gradient);
         if (march == kContactMarchStepped) {
           relax_frames_.row(v) = frame.transpose();
           positions_.row(v) = x.transpose();

@@ -137,6 +137,13 @@ struct SurfaceTrackingOptions {
   // fields overlap outside both surfaces, a poor fit's overlap, and the march
   // there would pull the skin in (docs/algorithm.md). 1: no such test.
   float contact_home_slack = 0.03f;
+  // A vertex that would start that march while its own part's field is
+  // below its part's surface value less this (field units) -- skin that
+  // skinning carried out of its own part, a deep bend's -- stops where it
+  // is: the march to the contact would pull it deep into the other part
+  // and the paper's march send it out through the far side
+  // (docs/algorithm.md). 1: no such test.
+  float contact_home_reach = 0.1f;
   int beta_diffusion = 1;   // eq. 7: diffusion iterations of beta
   int smoothing_steps = 8;  // eq. 7: Laplacian steps
   // Localized: diffusion and Laplacian steps use only the neighbours within
@@ -341,6 +348,11 @@ HomeSamples homeSamples(const TrackingMesh& mesh, const int* partners,
 // home_surface[v] - options.contact_home_slack.
 float homeFloor(const TrackingMesh& mesh, int vertex,
                 const SurfaceTrackingOptions& options);
+// The value of vertex v's own part's field below which a vertex that would
+// start the march to a contact stops instead:
+// home_surface[v] - options.contact_home_reach.
+float homeMinimum(const TrackingMesh& mesh, int vertex,
+                  const SurfaceTrackingOptions& options);
 
 // One frame's per-vertex results and counts.
 struct TrackingCounts {
