@@ -34,7 +34,8 @@ def quiet():
 def frame(new=0, volume=1.0, strain_mean=0.01, strain_max=0.1,
           distance=0.001, jitter=None, lost=0):
     return {"self_intersections": new + 2, "new_self_intersections": new,
-            "volume_ratio": volume, "edge_strain_mean": strain_mean,
+            "volume_ratio": volume, "covered_volume_ratio": volume,
+            "edge_strain_mean": strain_mean,
             "edge_strain_max": strain_max, "contact_region_vertices": 0,
             "dqs_distance_mean": distance / 2, "dqs_distance_max": distance,
             "jitter_mean": None if jitter is None else jitter / 2,
@@ -50,6 +51,8 @@ def report(frames, method="implicit", rest_pose_error=0.0, clip="walk"):
     worst = max(range(len(frames)), key=lambda k: (news[k], -k))
     q = {"volume_ratio": ({"min": min(volumes), "max": max(volumes)}
                           if volumes else None),
+         "covered_volume_ratio": ({"min": min(volumes), "max": max(volumes)}
+                                  if volumes else None),
          "rest_pose_error": rest_pose_error,
          "self_intersections": {"max": max(news), "total": sum(news),
                                 "at_rest": 2, "counted": "pairs (test)"},
@@ -138,6 +141,16 @@ class VolumeTarget(unittest.TestCase):
         status, detail = rq.target_volume(dqs, imp)
         self.assertEqual(status, rq.NOT_MET)
         self.assertIn("1 frame, worst frame 1", detail)
+
+    def test_covered_volume_judged_on_its_own_ratio(self):
+        # DQS's skin passes through itself: its signed volume stays at 1
+        # while its covered volume falls as far as implicit's.
+        dqs_f = dqs_frames(volumes=(1.0, 1.0, 1.0))
+        for f, covered in zip(dqs_f, (1.0, 0.95, 0.9)):
+            f["covered_volume_ratio"] = covered
+        imp = ok([frame(volume=v) for v in (1.0, 0.95, 0.9)])
+        self.assertEqual(rq.target_volume(ok(dqs_f), imp)[0], rq.NOT_MET)
+        self.assertEqual(rq.target_covered(ok(dqs_f), imp)[0], rq.MET)
 
     def test_open_mesh_is_na(self):
         imp = ok([frame(volume=None) for _ in range(3)])
@@ -275,13 +288,13 @@ class Render(unittest.TestCase):
                       text)
         self.assertIn("Not run: the same as its first clip.", text)
         self.assertIsNone(re.search(r"\b(nan|inf|None)\b", text))
-        # The summary rows: CesiumMan meets all 4, the fox none.
+        # The summary rows: CesiumMan meets all 5, the fox none.
         rows = {l.split(" | ")[0]: l for l in text.splitlines()
                 if l.startswith("| [")}
         self.assertTrue(rows["| [CesiumMan.glb, first clip 'walk']"
-                             "(#cesiumman-clip0)"].endswith("| 4 of 4 |"))
+                             "(#cesiumman-clip0)"].endswith("| 5 of 5 |"))
         self.assertTrue(rows["| [fox.glb, procedural bend 90 degrees]"
-                             "(#fox-bend90)"].endswith("| 0 of 4 |"))
+                             "(#fox-bend90)"].endswith("| 0 of 5 |"))
         summary = text.split("## Summary of targets", 1)[1]
         self.assertIn("| volume kept | 1 met, 1 not met | 2 met, 0 not met "
                       "| 0 met, 2 not met |", summary)

@@ -24,8 +24,10 @@ constexpr const char* kCountedPairs =
     "triangles included), not intersecting at rest";
 constexpr const char* kMeasures =
     "per frame: self_intersections (all pairs), new_self_intersections (not "
-    "at rest), volume_ratio (to rest), edge_strain_mean/max (|length / rest "
-    "length - 1|), dqs_distance_mean/max (distance from the DQS frame of the "
+    "at rest), volume_ratio (to rest), covered_volume_ratio (the volume "
+    "enclosed once or more, overlaps counted once, to rest), "
+    "edge_strain_mean/max (|length / rest length - 1|), dqs_distance_mean/max "
+    "(distance from the DQS frame of the "
     "same pose over the rest bounding-box diagonal, of the vertices farther "
     "than 5% of the diagonal from any contact), jitter_mean/max (second "
     "difference over three frames minus DQS's, over the diagonal), "
@@ -39,6 +41,7 @@ nlohmann::json frameJson(const FrameQuality& q) {
   return {{"self_intersections", q.self_intersections},
           {"new_self_intersections", q.new_self_intersections},
           {"volume_ratio", optionalNumber(q.volume_ratio)},
+          {"covered_volume_ratio", optionalNumber(q.covered_volume_ratio)},
           {"edge_strain_mean", q.edge_strain_mean},
           {"edge_strain_max", q.edge_strain_max},
           {"contact_region_vertices", q.contact_region_vertices},
@@ -77,6 +80,12 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result) {
     const QualitySummary summary = summarizeQuality(result.quality);
     quality["edge_strain"] = {{"mean", summary.edge_strain_mean},
                               {"max", summary.edge_strain_max}};
+    if (summary.covered_volume_ratio_min)
+      quality["covered_volume_ratio"] = {
+          {"min", *summary.covered_volume_ratio_min},
+          {"max", *summary.covered_volume_ratio_max}};
+    else
+      quality["covered_volume_ratio"] = nullptr;
     quality["dqs_distance_max"] = summary.dqs_distance_max;
     quality["jitter_max"] = optionalNumber(summary.jitter_max);
     quality["lost_vertices_max"] = summary.lost_vertices_max;

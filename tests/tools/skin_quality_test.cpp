@@ -34,6 +34,8 @@ TEST(SkinQuality, RestPoseMeasuresNothing) {
     EXPECT_EQ(q.new_self_intersections, 0);
     ASSERT_TRUE(q.volume_ratio);
     EXPECT_NEAR(*q.volume_ratio, 1.0, 1e-9);
+    ASSERT_TRUE(q.covered_volume_ratio);
+    EXPECT_EQ(*q.covered_volume_ratio, 1.0);
     EXPECT_EQ(q.edge_strain_mean, 0);
     EXPECT_EQ(q.edge_strain_max, 0);
     EXPECT_EQ(q.dqs_distance_max, 0);
@@ -51,6 +53,8 @@ TEST(SkinQuality, UniformScaleStrainsEveryEdgeAndScalesTheVolume) {
   EXPECT_NEAR(q.edge_strain_max, 1.0, 1e-5);
   ASSERT_TRUE(q.volume_ratio);
   EXPECT_NEAR(*q.volume_ratio, 8.0, 1e-4);
+  ASSERT_TRUE(q.covered_volume_ratio);
+  EXPECT_NEAR(*q.covered_volume_ratio, 8.0, 1e-2);
   EXPECT_EQ(q.new_self_intersections, 0);
   // Against the rest pose as its "DQS frame", far vertices moved by
   // |p| each: the largest is the farthest vertex from the origin.

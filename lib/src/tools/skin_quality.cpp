@@ -80,6 +80,10 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
   rest_volume_ = enclosedVolume(rest.positions, triangles_);
   const double d = diagonal_;
   volume_meaningful_ = d > 0 && std::abs(rest_volume_) > 1e-6 * d * d * d;
+  if (volume_meaningful_) {
+    rest_covered_volume_ = coveredVolume(rest.positions, triangles_);
+    volume_meaningful_ = rest_covered_volume_ > 0;
+  }
 
   // The welded edges, each once, with their rest lengths.
   for (Eigen::Index f = 0; f < triangles_.rows(); ++f) {
@@ -176,6 +180,8 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
   q.new_self_intersections = static_cast<int>(last_new_pairs_.size());
   if (volume_meaningful_) {
     q.volume_ratio = enclosedVolume(positions, triangles_) / rest_volume_;
+    q.covered_volume_ratio =
+        coveredVolume(positions, triangles_) / rest_covered_volume_;
   }
 
   double strain_sum = 0;
@@ -255,6 +261,13 @@ QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames) {
       s.volume_ratio_max = s.volume_ratio_max
                                ? std::max(*s.volume_ratio_max, *q.volume_ratio)
                                : *q.volume_ratio;
+    }
+    if (q.covered_volume_ratio) {
+      const double r = *q.covered_volume_ratio;
+      s.covered_volume_ratio_min =
+          std::min(s.covered_volume_ratio_min.value_or(r), r);
+      s.covered_volume_ratio_max =
+          std::max(s.covered_volume_ratio_max.value_or(r), r);
     }
     strain_sum += q.edge_strain_mean;
     s.edge_strain_max = std::max(s.edge_strain_max, q.edge_strain_max);

@@ -8,7 +8,9 @@
 //   - self-intersecting triangle pairs of the welded mesh, fold-overs of
 //     adjacent triangles included (isk/tools/self_intersection.hpp), and
 //     those of them that are new against the rest pose;
-//   - enclosed volume over the rest volume;
+//   - enclosed volume over the rest volume, and the covered volume (the
+//     points enclosed once or more: overlaps counted once) over its rest
+//     value;
 //   - edge strain, |length / rest length - 1| over the welded edges;
 //   - distance from the DQS frame of the same pose of the vertices away
 //     from any contact, over the rest bounding-box diagonal;
@@ -40,6 +42,9 @@ struct FrameQuality {
   int new_self_intersections = 0;  // those not intersecting at rest
   // Unset when the rest mesh encloses about no volume (open or flat).
   std::optional<double> volume_ratio;
+  // coveredVolume (isk/tools/mesh_metrics.hpp) over the rest pose's; unset
+  // where volume_ratio is.
+  std::optional<double> covered_volume_ratio;
   double edge_strain_mean = 0, edge_strain_max = 0;
   // Vertices (welded) near a contact, and the others' distance from their
   // DQS position over the diagonal (0 without a DQS frame: the frame is one).
@@ -57,6 +62,7 @@ struct QualitySummary {
   int new_self_intersections_max = 0;
   long long new_self_intersections_total = 0;
   std::optional<double> volume_ratio_min, volume_ratio_max;
+  std::optional<double> covered_volume_ratio_min, covered_volume_ratio_max;
   double edge_strain_mean = 0;  // mean over the frames of their means
   double edge_strain_max = 0;
   double dqs_distance_max = 0;
@@ -115,7 +121,7 @@ class SkinQuality {
   std::vector<std::pair<int, int>> rest_pairs_, last_pairs_, last_new_pairs_;
   std::vector<std::pair<int, int>> edges_;  // welded, unique
   std::vector<float> edge_rest_lengths_;
-  double rest_volume_ = 0;
+  double rest_volume_ = 0, rest_covered_volume_ = 0;
   bool volume_meaningful_ = false;
   float diagonal_ = 0;
   // The two frames before (and their DQS frames), for the jitter.
