@@ -161,6 +161,11 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "where skinning put it (1: no such test)")
           ->check(CLI::Range(0.0, 1.0))
           ->capture_default_str(),
+      app.add_option("--blend-contact-angle", tracking.blend_contact_degrees,
+                     "implicit: the joint angle (degrees) from which the two "
+                     "fields of a blend meet in contact")
+          ->check(CLI::Range(0.0, 180.0))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")

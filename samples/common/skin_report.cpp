@@ -110,6 +110,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"contact_entry", t.contact_entry},
           {"contact_home_slack", t.contact_home_slack},
           {"contact_home_reach", t.contact_home_reach},
+          {"blend_contact_degrees", t.blend_contact_degrees},
           {"beta_diffusion", t.beta_diffusion},
           {"smoothing_steps", t.smoothing_steps},
           {"crease_steps", t.crease_steps},

@@ -176,6 +176,10 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
     o.contact_home_reach = slack;
     EXPECT_NE(o.validate().reason().find("contact_home_reach"),
               std::string::npos);
+    o = {};
+    o.blend_contact_degrees = slack * 200.f;
+    EXPECT_NE(o.validate().reason().find("blend_contact_degrees"),
+              std::string::npos);
   }
   for (const int cells : {-1, 17}) {
     detail::TrackingTuning tuning;
@@ -413,7 +417,7 @@ bool checkHomeReach(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     return s.normals();
   }();
   const ComposedFieldSampler sampler(f->grids, pose, &f->composition);
-  const std::vector<int> partners = activePartners(mesh, pose);
+  const std::vector<int> partners = activePartners(mesh, pose, options);
   const float depth = 0.01f * rig.boundingBoxDiagonal();
   std::vector<Eigen::Vector4f> per_field(f->grids.fieldCount());
   int vertex = -1;
@@ -820,10 +824,10 @@ TEST(SurfaceTracking, CoarseArmAgainstDqs) {
   }
 }
 
-TEST(SurfaceTracking, BlendPartnersAreOtherPartsFromNinetyDegrees) {
-  // The blend shapes its joint's fold below 90 degrees (no contact between
-  // its two fields); from 90 degrees on it is a union and they meet in
-  // contact. Bulge pairs are never partners.
+TEST(SurfaceTracking, BlendPartnersAreOtherPartsFromTheBlendContactAngle) {
+  // The blend shapes its joint's fold below blend_contact_degrees (no
+  // contact between its two fields: 45 by default, 90 here too); from it on
+  // they meet in contact. Bulge pairs are never partners.
   const BentCylinder& c = bentCylinder();
   for (const CompositionOperator op :
        {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
@@ -833,13 +837,19 @@ TEST(SurfaceTracking, BlendPartnersAreOtherPartsFromNinetyDegrees) {
     const ImplicitFields fields = buildImplicitFields(c.rig, options);
     const TrackingMesh mesh = TrackingMesh::build(c.rig.mesh, fields);
     ASSERT_EQ(mesh.partner_pairs.size(), 1u);
-    for (const double degrees : {0.0, 45.0, 89.0, 91.0, 135.0}) {
-      const std::vector<int> partners =
-          activePartners(mesh, bendAt(c.rig, c.joint, degrees));
-      ASSERT_EQ(partners.size(), static_cast<size_t>(mesh.field_count) *
-                                     TrackingMesh::kMaxPartners);
-      const bool expected = op == CompositionOperator::kBlend && degrees < 90;
-      EXPECT_EQ(partners[0] >= 0, expected) << degrees << " degrees";
+    for (const float limit : {45.f, 90.f}) {
+      SurfaceTrackingOptions tracking;
+      tracking.blend_contact_degrees = limit;
+      for (const double degrees : {0.0, 30.0, 44.0, 46.0, 89.0, 91.0, 135.0}) {
+        const std::vector<int> partners =
+            activePartners(mesh, bendAt(c.rig, c.joint, degrees), tracking);
+        ASSERT_EQ(partners.size(), static_cast<size_t>(mesh.field_count) *
+                                       TrackingMesh::kMaxPartners);
+        const bool expected =
+            op == CompositionOperator::kBlend && degrees < limit;
+        EXPECT_EQ(partners[0] >= 0, expected)
+            << degrees << " degrees, limit " << limit;
+      }
     }
   }
 }
@@ -880,6 +890,46 @@ TEST(SurfaceTracking, BlendAndBulgeFoldsDoNotCross) {
   united.readPositions(b);
   EXPECT_GT(enclosedVolume(a, mesh.triangles),
             enclosedVolume(b, mesh.triangles) + 0.005 * rest);
+}
+
+TEST(SurfaceTracking, BlendFoldsMeetInContactFromTheBlendContactAngle) {
+  // Between 45 and 90 degrees the blend turns back into a union; the two
+  // sides of its fold, partners below blend_contact_degrees, meet in
+  // contact from it on: fewer crossing pairs than DQS's, the blend's
+  // volume kept. With the contact from 90 degrees they pass through each
+  // other, more than DQS's skin does.
+  const BentCylinder& c = bentCylinder();
+  const Mesh& mesh = c.rig.mesh;
+  ImplicitSkinnerOptions options;
+  options.fields.composition.default_operator = CompositionOperator::kBlend;
+  const auto fields = std::make_shared<const ImplicitFields>(
+      buildImplicitFields(c.rig, options.fields));
+  ImplicitSkinnerOptions late = options;
+  late.tracking.blend_contact_degrees = 90.f;
+  ImplicitSkinner by_default(test::sharedContext(), c.rig, fields, options);
+  ImplicitSkinner at_90(test::sharedContext(), c.rig, fields, late);
+  const double rest = enclosedVolume(mesh.positions, mesh.triangles);
+  for (const double degrees : {75.0, 85.0}) {
+    SCOPED_TRACE(std::to_string(degrees) + " degrees");
+    const TransformList pose = bendAt(c.rig, c.joint, degrees);
+    const int dqs = countSelfIntersections(
+        geometric(c.rig, SkinningMethod::kDualQuaternion, pose),
+        mesh.triangles);
+    Matrix3Xf a, b;
+    by_default.run(pose);
+    by_default.readPositions(a);
+    at_90.run(pose);
+    at_90.readPositions(b);
+    const int pairs = countSelfIntersections(a, mesh.triangles);
+    const int pairs_at_90 = countSelfIntersections(b, mesh.triangles);
+    std::cout << "[ blend, bend " << degrees << " deg ] pairs DQS " << dqs
+              << ", contact from 45 degrees " << pairs << ", from 90 "
+              << pairs_at_90 << "; covered volume / rest "
+              << coveredVolume(a, mesh.triangles) / rest << "\n";
+    EXPECT_LE(pairs, dqs / 2);
+    EXPECT_GT(pairs_at_90, dqs);
+    EXPECT_GT(coveredVolume(a, mesh.triangles), 0.99 * rest);
+  }
 }
 
 // The projection kernel's march order: every tracked vertex once (and no
@@ -1100,7 +1150,8 @@ void checkNeighbourhoodCells(const ImplicitFields& fields,
 void checkNeighbourhoods(const Rig& rig, const ImplicitFields& fields,
                          const TransformList& pose, bool expect_pruning) {
   const TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
-  const std::vector<int> partners = activePartners(mesh, pose);
+  const std::vector<int> partners =
+      activePartners(mesh, pose, SurfaceTrackingOptions());
   const FieldNeighbourhoods nb = fieldNeighbourhoods(
       mesh, fields.grids, fieldTransforms(fields.grids, pose), partners);
   const int field_count = fields.grids.fieldCount();
@@ -1861,7 +1912,7 @@ TEST(ImplicitSkinner, SpeedSwitchesChangeNoResultOnAManyBoneCylinder) {
   const TrackingMesh mesh = TrackingMesh::build(c.rig.mesh, *c.fields);
   const FieldNeighbourhoods nb = fieldNeighbourhoods(
       mesh, c.fields->grids, fieldTransforms(c.fields->grids, pose),
-      activePartners(mesh, pose));
+      activePartners(mesh, pose, SurfaceTrackingOptions()));
   int longest = 0;
   for (size_t h = 0; h + 1 < nb.offsets.size(); ++h)
     longest = std::max(longest, nb.offsets[h + 1] - nb.offsets[h]);

@@ -376,7 +376,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
                       std::to_string(vertex_count_) + " vertices");
     fields_->setPose(skinning);  // validates the pose
     // Kept in a member: the non-blocking write reads it until it is done.
-    partners_staging_ = activePartners(*mesh_, skinning);
+    partners_staging_ = activePartners(*mesh_, skinning, options_);
     neighbourhoods_ = fieldNeighbourhoods(
         *mesh_, fields_->layout(), fields_->posedToBone(), partners_staging_);
     if (detail::tuningOf(options_).field_neighbourhoods &&

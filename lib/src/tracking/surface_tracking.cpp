@@ -217,6 +217,10 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(contact_home_slack >= 0 && contact_home_slack <= 1))
     return bad("contact_home_slack " + std::to_string(contact_home_slack) +
                ": expected field units in [0, 1]");
+  if (!(blend_contact_degrees >= 0 && blend_contact_degrees <= 180))
+    return bad("blend_contact_degrees " +
+               std::to_string(blend_contact_degrees) +
+               ": expected degrees in [0, 180]");
   if (!(contact_home_reach >= 0 && contact_home_reach <= 1))
     return bad("contact_home_reach " + std::to_string(contact_home_reach) +
                ": expected field units in [0, 1]");
@@ -502,7 +506,10 @@ TrackingLengths trackingLengths(const TrackingMesh& mesh,
 }
 
 std::vector<int> activePartners(const TrackingMesh& mesh,
-                                const TransformList& skinning) {
+                                const TransformList& skinning,
+                                const SurfaceTrackingOptions& options) {
+  const float limit =
+      options.blend_contact_degrees * static_cast<float>(M_PI) / 180.f;
   constexpr int kMax = TrackingMesh::kMaxPartners;
   std::vector<int> partners(static_cast<size_t>(mesh.field_count) * kMax, -1);
   auto add = [&](int field, int partner) {
@@ -522,7 +529,7 @@ std::vector<int> activePartners(const TrackingMesh& mesh,
     const Eigen::Quaternionf relative = a.conjugate() * b;
     const float angle =
         2.f * std::atan2(relative.vec().norm(), std::abs(relative.w()));
-    if (!(angle < static_cast<float>(M_PI) / 2)) continue;
+    if (!(angle < limit)) continue;
     add(pair.field_a, pair.field_b);
     add(pair.field_b, pair.field_a);
   }
@@ -885,7 +892,7 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
                       std::to_string(skinning.size()) +
                       " transforms were given");
   skinning_ = skinning;
-  partners_ = activePartners(*mesh_, skinning);
+  partners_ = activePartners(*mesh_, skinning, options_);
   neighbourhoods_ = fieldNeighbourhoods(
       *mesh_, *fields_, fieldTransforms(*fields_, skinning), partners_);
   positions_ = skinned_positions;

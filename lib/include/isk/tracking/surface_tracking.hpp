@@ -144,6 +144,11 @@ struct SurfaceTrackingOptions {
   // and the paper's march send it out through the far side
   // (docs/algorithm.md). 1: no such test.
   float contact_home_reach = 0.1f;
+  // Two fields joined by a blend are not other parts for the contact by
+  // home field while their joint is turned by less than this from its bind
+  // pose (degrees): the blend shapes a fold that turns by less into a
+  // fillet; from it on the two sides meet in contact (docs/algorithm.md).
+  float blend_contact_degrees = 45.f;
   int beta_diffusion = 1;   // eq. 7: diffusion iterations of beta
   int smoothing_steps = 8;  // eq. 7: Laplacian steps
   // Localized: diffusion and Laplacian steps use only the neighbours within
@@ -266,9 +271,11 @@ TrackingLengths trackingLengths(const TrackingMesh& mesh,
 // Per field (#fields by kMaxPartners, -1 padded) the fields that are not
 // other parts for the contact by home field at the pose `skinning`
 // (#joints): those joined to it by a blend pair whose joint is turned by
-// less than 90 degrees from its bind pose (pairJointAngles).
+// less than options.blend_contact_degrees from its bind pose
+// (pairJointAngles).
 std::vector<int> activePartners(const TrackingMesh& mesh,
-                                const TransformList& skinning);
+                                const TransformList& skinning,
+                                const SurfaceTrackingOptions& options);
 
 // The exact broad phase of tracking at a pose. Per field h, the fields
 // whose posed support box (a parallelepiped: the grid's box through the
