@@ -71,3 +71,55 @@ def test_a_vertex_through_the_skin_is_a_new_pair():
     positions[side, 1] = -1.5
     q = isk.quality(rig, positions)
     assert q["new_self_intersections"] > 0
+
+
+def isk_skin_exe():
+    import os
+    from conftest import REPO
+    exe = os.environ.get("ISK_SKIN_EXE") or str(
+        REPO / "build" / "samples" / "isk-skin" / "isk-skin")
+    assert os.path.isfile(exe), f"{exe} is missing: build isk-skin"
+    return exe
+
+
+@pytest.mark.parametrize("method", ["lbs", "dqs"])
+@pytest.mark.parametrize("name", BUILTIN_RIGS + ASSETS)
+def test_measures_equal_isk_skin_report(tmp_path, name, method):
+    # The same frames (CPU reference) measured by isk-skin's report.
+    import json
+    import subprocess
+
+    spec = rig_spec(name)
+    frames = 3
+    clip = "bend:120" if name in BUILTIN_RIGS else "0"
+    report = tmp_path / "report.json"
+    result = subprocess.run(
+        [isk_skin_exe(), spec, "--method", method, "--device", "reference",
+         "--clip", clip, "--frames", str(frames), "--report", str(report)],
+        capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    expected = json.loads(report.read_text())["quality"]["frames"]
+
+    rig = load(spec)
+    skinner = isk.GeometricSkinner(rig, method=method, device="reference")
+    dqs = isk.GeometricSkinner(rig, method="dqs", device="reference")
+    for i in range(frames):
+        if name in BUILTIN_RIGS:
+            pose = rig.bend_pose(120 * i / (frames - 1)) if i else \
+                rig.bind_pose()
+        else:
+            c = rig.clips[0]
+            pose = rig.clip_pose(0, c.start + i * c.duration / (frames - 1))
+        positions, _ = skinner.deform(pose)
+        reference = dqs.deform(pose)[0] if method == "lbs" else None
+        q = isk.quality(rig, positions, dqs_positions=reference)
+        for key in ("self_intersections", "new_self_intersections",
+                    "contact_region_vertices"):
+            assert q[key] == expected[i][key], (i, key)
+        for key in ("volume_ratio", "edge_strain_mean", "edge_strain_max",
+                    "dqs_distance_mean", "dqs_distance_max"):
+            if expected[i][key] is None:
+                assert q[key] is None, (i, key)
+            else:
+                assert q[key] == pytest.approx(expected[i][key], rel=1e-9,
+                                               abs=1e-12), (i, key)
