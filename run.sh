@@ -18,7 +18,8 @@ cd "$(dirname "$0")"
 PACKAGES=(build-essential cmake pkg-config
   ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
   libeigen3-dev libopenmesh-dev libassimp-dev libgtest-dev libbenchmark-dev
-  libstb-dev libcli11-dev nlohmann-json3-dev libcgal-dev python3)
+  libstb-dev libcli11-dev nlohmann-json3-dev libcgal-dev python3
+  pybind11-dev python3-dev python3-numpy python3-pytest blender)
 BUILD_DIR=${ISK_BUILD_DIR:-build}
 JOBS=${ISK_JOBS:-$(nproc)}
 

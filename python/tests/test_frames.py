@@ -1,0 +1,127 @@
+"""The module's frames equal the C++ API's, bit for bit: LBS, DQS and
+implicit skinning, on the OpenCL device and on the CPU reference, on the
+procedural rigs and on two shared assets."""
+
+import numpy as np
+import pytest
+
+import isk
+from conftest import ASSETS, BUILTIN_RIGS, load, reference_frames, rig_spec
+
+RIGS = BUILTIN_RIGS + ASSETS
+DEVICES = ["opencl", "reference"]
+
+
+def make_skinner(rig, method, device, **options):
+    if method == "implicit":
+        return isk.ImplicitSkinner(rig, device=device, **options)
+    return isk.GeometricSkinner(rig, method=method, device=device)
+
+
+def assert_same_frames(skinner, reference, poses, implicit):
+    assert len(poses) == len(reference.positions)
+    # The frames move, so that equal frames say something.
+    assert any(not np.array_equal(p, reference.positions[0])
+               for p in reference.positions[1:])
+    for i, pose in enumerate(poses):
+        positions, normals = skinner.deform(pose)
+        assert positions.dtype == np.float32 and normals.dtype == np.float32
+        assert positions.flags["C_CONTIGUOUS"]
+        assert np.array_equal(positions, reference.positions[i]), (
+            f"frame {i}: positions differ by up to "
+            f"{np.abs(positions - reference.positions[i]).max()}")
+        assert np.array_equal(normals, reference.normals[i]), (
+            f"frame {i}: normals differ by up to "
+            f"{np.abs(normals - reference.normals[i]).max()}")
+        if implicit:
+            assert skinner.contact_count == reference.contacts[i]
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("method", ["lbs", "dqs", "implicit"])
+@pytest.mark.parametrize("name", RIGS)
+def test_clip_frames_equal_cpp(tmp_path, name, method, device):
+    spec = rig_spec(name)
+    frames = 3
+    # The assets' fields go through the on-disk cache: the C++ program
+    # builds and writes them, the module loads them.
+    cache = tmp_path / "cache"
+    options = [f"cache={cache}"] if name in ASSETS else []
+    reference = reference_frames(tmp_path, spec, method, device, frames,
+                                 *options)
+    rig = load(spec)
+    poses = [rig.clip_pose(0, t) for t in reference.times]
+    kwargs = {"cache_dir": str(cache)} if options and method == "implicit" \
+        else {}
+    skinner = make_skinner(rig, method, device, **kwargs)
+    if kwargs:
+        assert skinner.cache_origin == "loaded"
+    assert_same_frames(skinner, reference, poses, method == "implicit")
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("operator", ["blend", "bulge"])
+def test_bend_pose_with_operators_equals_cpp(tmp_path, operator, device):
+    # isk-skin's --clip bend:120 ends at rig.bend_pose(120).
+    spec = rig_spec("arm")
+    reference = reference_frames(tmp_path, spec, "implicit", device, 2,
+                                 "bend=120", f"operator={operator}")
+    rig = load(spec)
+    poses = [rig.bind_pose(), rig.bend_pose(120)]
+    skinner = isk.ImplicitSkinner(rig, device=device, operator=operator)
+    assert_same_frames(skinner, reference, poses, True)
+
+
+@pytest.mark.parametrize("name", BUILTIN_RIGS)
+def test_rig_from_arrays_skins_as_the_original(name):
+    rig = isk.builtin_rig(name)
+    indices, weights = rig.weight_arrays()
+    copy = isk.Rig.from_arrays(rig.rest_positions, rig.triangles, rig.parents,
+                               rig.inverse_bind_matrices, indices, weights,
+                               joint_names=rig.joint_names)
+    assert copy.vertex_count == rig.vertex_count
+    assert copy.joint_names == rig.joint_names
+    assert np.array_equal(copy.parents, rig.parents)
+    assert copy.clips == [] or len(copy.clips) == 0
+    pose = rig.clip_pose(0, rig.clips[0].duration)
+    for method in ("lbs", "dqs"):
+        a = isk.GeometricSkinner(rig, method=method, device="reference")
+        b = isk.GeometricSkinner(copy, method=method, device="reference")
+        pa, na = a.deform(pose)
+        pb, nb = b.deform(pose)
+        assert np.array_equal(pa, pb)
+        assert np.array_equal(na, nb)
+    # The rest locals come back from the inverse binds: the bend agrees.
+    assert np.allclose(copy.bend_pose(90), rig.bend_pose(90), atol=1e-5)
+
+
+def test_bind_pose_reproduces_the_rest_mesh():
+    rig = isk.builtin_rig("cylinder")
+    assert np.array_equal(rig.bind_pose(),
+                          np.broadcast_to(np.eye(4, dtype=np.float32),
+                                          (rig.joint_count, 4, 4)))
+    skinner = isk.GeometricSkinner(rig, method="dqs", device="reference")
+    positions, _ = skinner.deform(rig.bind_pose())
+    assert np.allclose(positions, rig.rest_positions, atol=1e-5)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_threads_get_the_frames_of_one_thread(device):
+    # Frames run without the GIL; skinners sharing a device take turns.
+    import concurrent.futures
+
+    rig = isk.builtin_rig("finger")
+    poses = [rig.bend_pose(a) for a in (0, 30, 60, 90)]
+    skinners = [isk.GeometricSkinner(rig, method="lbs", device=device),
+                isk.GeometricSkinner(rig, method="dqs", device=device),
+                isk.ImplicitSkinner(rig, device=device)]
+    alone = [[s.deform(p) for p in poses] for s in skinners]
+
+    def frames(skinner):
+        return [skinner.deform(p) for p in poses]
+
+    with concurrent.futures.ThreadPoolExecutor(len(skinners)) as pool:
+        together = list(pool.map(frames, skinners))
+    for a, b in zip(alone, together):
+        for (pa, na), (pb, nb) in zip(a, b):
+            assert np.array_equal(pa, pb) and np.array_equal(na, nb)
