@@ -39,6 +39,9 @@ py::dict quality(const Rig& rig, py::handle positions_in, py::handle dqs_in,
   out["rest_self_intersections"] = rest_pairs;
   out["volume_ratio"] =
       frame.volume_ratio ? py::cast(*frame.volume_ratio) : py::none();
+  out["covered_volume_ratio"] = frame.covered_volume_ratio
+                                    ? py::cast(*frame.covered_volume_ratio)
+                                    : py::none();
   out["rest_volume"] = rest_volume;
   out["edge_strain_mean"] = frame.edge_strain_mean;
   out["edge_strain_max"] = frame.edge_strain_max;

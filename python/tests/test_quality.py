@@ -10,7 +10,8 @@ import isk
 from conftest import ASSETS, BUILTIN_RIGS, load, rig_spec
 
 KEYS = {"self_intersections", "new_self_intersections",
-        "rest_self_intersections", "volume_ratio", "rest_volume",
+        "rest_self_intersections", "volume_ratio", "covered_volume_ratio",
+        "rest_volume",
         "edge_strain_mean", "edge_strain_max", "contact_region_vertices",
         "dqs_distance_mean", "dqs_distance_max"}
 
@@ -24,6 +25,7 @@ def test_rest_pose_keeps_everything(name):
     assert q["self_intersections"] == q["rest_self_intersections"]
     if q["volume_ratio"] is not None:
         assert q["volume_ratio"] == pytest.approx(1.0, abs=1e-12)
+        assert q["covered_volume_ratio"] == 1.0
     else:
         assert name in ASSETS, "every procedural rig is closed"
     assert q["edge_strain_max"] == 0.0
@@ -116,7 +118,8 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
         for key in ("self_intersections", "new_self_intersections",
                     "contact_region_vertices"):
             assert q[key] == expected[i][key], (i, key)
-        for key in ("volume_ratio", "edge_strain_mean", "edge_strain_max",
+        for key in ("volume_ratio", "covered_volume_ratio",
+                    "edge_strain_mean", "edge_strain_max",
                     "dqs_distance_mean", "dqs_distance_max"):
             if expected[i][key] is None:
                 assert q[key] is None, (i, key)
