@@ -5,12 +5,23 @@
     python3 bench/run_benchmarks.py --filter 'CesiumMan$|^OperatorTable/' \\
         --min-time 0.1 --out /tmp/partial.md           # a short partial run
     python3 bench/run_benchmarks.py --from-json build/bench/benchmarks.json
+    python3 bench/run_benchmarks.py --only-python --out /tmp/python.md
 
 The JSON of the run is saved next to the executable (benchmarks.json), then
 BENCHMARKS.md is written from it, entirely: every number in it comes from the
 JSON (or, for the paper's Table 1, from the paper), the text around the
 numbers is static. A partial JSON (a --filter run) gives the sections it has
 data for; the others say "not run". Progress goes to stderr.
+
+After isk_bench (unless --skip-python), bench/python_frames.py (the isk
+Python module's frames, with the build's Python and its python/ folder) and
+bench/blender_frames.py (Blender's frames with the add-on, from the build's
+isk_blender.zip) run; their JSON goes into the run's JSON under the key
+"isk_python_blender" ({"python": ..., "blender": ...}, each the script's
+JSON or {"skipped": why} or {"failed": why}), so --from-json renders them
+too. --only-python runs those two alone and writes their JSON
+(python-blender.json beside the executable) and markdown (python-blender.md
+beside that JSON).
 
 Python 3 standard library only.
 """
@@ -20,10 +31,13 @@ import datetime
 import json
 import math
 import os
+import platform
 import re
 import shlex
+import shutil
 import subprocess
 import sys
+import tempfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -113,6 +127,142 @@ def run_suite(args):
                - started).total_seconds()
     log(f"== done in {elapsed:.0f} s; JSON: {json_path}")
     return json_path, command, elapsed
+
+
+def build_dir(args):
+    """The build folder the isk_bench executable lies in (<build>/bench)."""
+    return os.path.dirname(os.path.dirname(os.path.abspath(args.bench)))
+
+
+def run_figures_script(name, command, env, json_path, summary_marker):
+    """Runs bench/python_frames.py or bench/blender_frames.py; returns its
+    JSON, or {"skipped": why} (exit code 77) or {"failed": why}: a failure
+    here must not lose the isk_bench run before it."""
+    log(f"== {name}: {shlex.join(command)}")
+    started = datetime.datetime.now(datetime.timezone.utc)
+    process = subprocess.run(command, env=env, capture_output=True,
+                             text=True)
+    seconds = (datetime.datetime.now(datetime.timezone.utc)
+               - started).total_seconds()
+    lines = (process.stdout + process.stderr).splitlines()
+    own = [l for l in lines if l.startswith(name)]
+    if process.returncode == 77:
+        why = next((l.split("SKIP: ", 1)[1] for l in own if "SKIP: " in l),
+                   "skipped")
+        log(f"== {name}: skipped: {why}")
+        return {"skipped": why}
+    if process.returncode != 0 or not os.path.isfile(json_path):
+        log("\n".join(lines[-20:]))
+        log(f"== {name}: failed (exit {process.returncode})")
+        # The last line of its error output says why, in most cases.
+        last = next((l.strip() for l in reversed(process.stderr.splitlines())
+                     if l.strip()), "")
+        last = last if len(last) <= 200 else last[:200] + " ..."
+        return {"failed": f"exit code {process.returncode}"
+                + (f" ({last})" if last else "")}
+    # The script's summary, without Blender's own output around it.
+    start = next((i for i, l in enumerate(lines) if summary_marker in l),
+                 len(lines))
+    log("\n".join(l for l in lines[start:] if not l.startswith(name)))
+    with open(json_path) as f:
+        report = json.load(f)
+    report["command"] = command_text_of(command, json_path, env)
+    report["wall_seconds"] = seconds
+    return report
+
+
+def command_text_of(command, json_path, env):
+    """A script's command as the markdown shows it: paths inside the
+    repository relative, with the PYTHONPATH it was given."""
+    shown = []
+    if env.get("PYTHONPATH"):
+        shown.append("PYTHONPATH=" + os.pathsep.join(
+            shown_path(p) for p in env["PYTHONPATH"].split(os.pathsep)))
+    for c in command:
+        if c == json_path:
+            shown.append("OUT.json")
+        elif os.path.isabs(c):
+            shown.append(shown_path(c))
+        else:
+            shown.append(c)
+    return shlex.join(shown)
+
+
+def module_python(args):
+    """The interpreter the isk module was built for: --python, else the
+    build's CMake cache says, else this one."""
+    if args.python:
+        return args.python
+    cache = os.path.join(build_dir(args), "CMakeCache.txt")
+    if os.path.isfile(cache):
+        with open(cache) as f:
+            for line in f:
+                m = re.match(r"Python3_EXECUTABLE:FILEPATH=(.+)$", line)
+                if m and os.path.isfile(m.group(1).strip()):
+                    return m.group(1).strip()
+    return sys.executable
+
+
+def run_python_and_blender(args):
+    """The Python module's and Blender's frames (bench/python_frames.py,
+    bench/blender_frames.py), each skipped with a reason when its module or
+    Blender is missing: {"python": ..., "blender": ...}."""
+    build = build_dir(args)
+    module = os.path.abspath(args.python_module
+                             or os.path.join(build, "python"))
+    addon_zip = os.path.abspath(args.blender_zip
+                                or os.path.join(build, "isk_blender.zip"))
+    env = dict(os.environ)
+    if not env.get("POCL_CACHE_DIR"):
+        env["POCL_CACHE_DIR"] = os.path.join(REPO, ".pocl-cache")
+    # The field caches of the two scripts: builds are not what they time.
+    env.setdefault("ISK_CACHE_DIR", os.path.join(build, "isk-cache"))
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="isk-bench-") as folder:
+        if not os.path.isdir(os.path.join(module, "isk")):
+            out["python"] = {"skipped": f"no isk module in "
+                             f"{shown_path(module)} (build the target "
+                             "_isk and isk_python_package, or pass "
+                             "--python-module)"}
+        else:
+            json_path = os.path.join(folder, "python.json")
+            python_env = dict(env)
+            python_env["PYTHONPATH"] = os.pathsep.join(
+                [module] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH")
+                            else []))
+            out["python"] = run_figures_script(
+                "python_frames.py",
+                [module_python(args), os.path.join(REPO, "bench",
+                                              "python_frames.py"),
+                 "--json", json_path], python_env, json_path,
+                "Python module frames")
+        blender = shutil.which(args.blender)
+        if not blender:
+            out["blender"] = {"skipped": f"no `{args.blender}` executable "
+                              "on the PATH"}
+        elif not os.path.isfile(addon_zip):
+            out["blender"] = {"skipped": f"no add-on zip "
+                              f"{shown_path(addon_zip)} (build the target "
+                              "isk_blender_zip, or pass --blender-zip)"}
+        else:
+            json_path = os.path.join(folder, "blender.json")
+            # Blender's embedded Python takes the standard library of the
+            # first python3.x on the PATH: not this script's interpreter
+            # (a pyenv one, say), but the one Blender was built with.
+            blender_env = dict(env)
+            here = os.path.dirname(os.path.abspath(sys.executable))
+            blender_env["PATH"] = os.pathsep.join(
+                p for p in env.get("PATH", "").split(os.pathsep)
+                if p and os.path.abspath(p) != here)
+            out["blender"] = run_figures_script(
+                "blender_frames.py",
+                [args.blender, "-b", "--factory-startup",
+                 "--python-exit-code", "1", "--python",
+                 os.path.join(REPO, "bench", "blender_frames.py"), "--",
+                 "--json", json_path, "--zip", addon_zip], blender_env,
+                json_path,
+                "frame changes on")
+    return out
 
 
 # --------------------------------------------------------------------------
@@ -1139,6 +1289,150 @@ def precompute_section(results):
                                    "Not run.", ""]
 
 
+def bench_device_of(results, name):
+    """The OpenCL device index of this run's isk_bench with that name."""
+    return next((d for d, v in sorted(results.devices.items())
+                 if v["name"] == name), None)
+
+
+def not_measured(report):
+    if report is None:
+        return "not run (this JSON has no figures of it)"
+    if "skipped" in report:
+        return f"skipped: {report['skipped']}"
+    if "failed" in report:
+        return f"failed: {report['failed']}"
+    if not report.get("models"):
+        return "no model measured (assets missing: " + ", ".join(
+            report.get("missing", [])) + ")"
+    return None
+
+
+def python_blender_section(results, figures):
+    """The Python module's and Blender's frames (bench/python_frames.py and
+    bench/blender_frames.py, run after isk_bench; their JSON is stored in
+    this run's JSON under "isk_python_blender")."""
+    lines = ["## Python and Blender", ""]
+    if figures is None:
+        return lines + ["Not run (this JSON has no `isk_python_blender` "
+                        "figures: `bench/python_frames.py` and "
+                        "`bench/blender_frames.py` did not run).", ""]
+    lines += ["What a frame costs through the `isk` Python module and "
+              "through the Blender add-on, beside the library's own frame; "
+              "each ratio comes from frames measured in one process. "
+              "Figures are medians over the frames after a warm-up "
+              "(isk_bench's figures are means).", ""]
+    python = figures.get("python")
+    why = not_measured(python)
+    lines += ["### Python module (`bench/python_frames.py`)", ""]
+    if why:
+        lines += [f"Python module: {why}.", ""]
+    else:
+        lines += [
+            f"On {python['device']}, {python['frames']} frames per model "
+            f"and method after {python['warmup']} warm-up frames, in "
+            f"{python['wall_seconds']:.0f} s: "
+            f"`{python.get('command', 'python3 bench/python_frames.py')}`. "
+            "'Python' is the wall time of "
+            "`positions, normals = skinner.deform(pose)` (`isk."
+            "ImplicitSkinner`, `isk.GeometricSkinner` with DQS), the pose's "
+            "matrices computed beforehand: the matrices' conversion, the "
+            "C++ frame, the two read-backs and the NumPy arrays. 'C++' is "
+            "the C++ part of the same calls as the library times it: for "
+            "implicit `last_frame_ms` (`ImplicitSkinner::run`) plus "
+            "`stage_times['readback']` (`readPositions`, `readNormals`), "
+            "the frame that `Implicit/<model>/opencl` times; for DQS "
+            "`last_frame_ms` alone (`ClSkinning::run` with normals: the "
+            "module does not expose the DQS read-back), so the DQS "
+            "'Python / C++' also counts the read-back and bounds the "
+            "module's overhead from above. The poses are those of "
+            "isk_bench's `Implicit/` family (the first clip, stepped by "
+            "the golden ratio), the implicit and DQS frames of a pose in "
+            "turn; the last two columns set the Python call against this "
+            "run's `Implicit/<model>/opencl` and `dqs` ms/frame (the same "
+            "frames with their read-backs, in another process, minutes "
+            "apart).", ""]
+        rows = []
+        for m in python["models"]:
+            d = bench_device_of(results, m.get("device"))
+            runs = implicit_models(results).get(m["model"], {})
+            for name, label, backend in (("implicit", "implicit", "opencl"),
+                                         ("dqs", "DQS", "dqs")):
+                r = m[name]
+                bench = runs.get(f"{backend}:{d}") if d is not None else None
+                bench_ms = to_ms(bench) if bench else None
+                rows.append([m["model"], count(m["vertices"]), label,
+                             ms(r["python_ms"]), ms(r["cpp_ms"]),
+                             ratio(r["python_over_cpp"]),
+                             ms(r["overhead_ms"]), ms(bench_ms),
+                             ratio(r["python_ms"] / bench_ms)
+                             if bench_ms else "n/a"])
+        lines += table(["model", "vertices", "method", "Python ms/frame",
+                        "C++ ms/frame (same calls)", "Python / C++",
+                        "Python - C++ ms", "isk_bench ms/frame",
+                        "Python / isk_bench"], rows,
+                       ["l", "r", "l", "r", "r", "r", "r", "r", "r"])
+        if python.get("missing"):
+            lines += ["Assets missing: " + ", ".join(python["missing"])
+                      + ".", ""]
+    blender = figures.get("blender")
+    why = not_measured(blender)
+    lines += ["### Blender add-on (`bench/blender_frames.py`)", ""]
+    if why:
+        lines += [f"Blender: {why}.", ""]
+    else:
+        lines += [
+            f"Blender {blender['blender']}, headless, on "
+            f"{blender.get('device') or 'n/a'}, in "
+            f"{blender['wall_seconds']:.0f} s: "
+            f"`{blender.get('command', 'blender -b --factory-startup --python bench/blender_frames.py')}`. "
+            "Each asset is imported with Blender's glTF importer "
+            "and its largest skinned mesh played through its clip (again "
+            f"until at least {blender['min_frames']} frames are timed, "
+            f"after {blender['warmup']} warm-up frames): with the Armature "
+            "modifier alone, then with the add-on built on it (from the add-"
+            "on zip) for DQS and for implicit skinning. 'frame' is the wall "
+            "time of `scene.frame_set(frame)`: the action, the depsgraph "
+            "(the modifier, or the add-on's shape key) and the add-on's "
+            "handlers; 'handlers' is the add-on's frame-change and "
+            "depsgraph handlers within it (the skinning matrices from the "
+            "pose bones, the module's `deform`, the shape key's write); "
+            "'module' is the add-on's `last_frame_ms`, the module's C++ "
+            "frame without its read-back. Blender's vertex counts are its "
+            "own (it splits the mesh differently from Assimp).", ""]
+        rows = []
+        for m in blender["models"]:
+            if "error" in m:
+                rows.append([m["asset"], "n/a", m["error"], "n/a", "n/a",
+                             "n/a", "n/a"])
+                continue
+            label = (f"{m['asset']} ({count(m['vertices'])} v, "
+                     f"{m['bones']} bones, {m['clip_frames']} clip frames)")
+            rows.append([label, "Armature modifier",
+                         ms(m["armature"]["frame_ms"]), "1.00x", "", "", ""])
+            for mode, name in (("dqs", "add-on, DQS"),
+                               ("implicit", "add-on, implicit")):
+                r = m.get(mode, {})
+                if "error" in r:
+                    rows.append([label, name, r["error"], "n/a", "n/a",
+                                 "n/a", "n/a"])
+                    continue
+                handler = r.get("handler_ms")
+                rows.append([label, name, ms(r.get("frame_ms")),
+                             ratio(r.get("over_armature")), ms(handler),
+                             ms(r.get("module_ms")),
+                             ms(r["frame_ms"] - handler)
+                             if handler is not None else "n/a"])
+        lines += table(["asset", "deformed by", "frame ms",
+                        "frame / Armature modifier", "handlers ms",
+                        "module ms", "frame outside the handlers ms"], rows,
+                       ["l", "l", "r", "r", "r", "r", "r"])
+        if blender.get("missing"):
+            lines += ["Assets missing: " + ", ".join(blender["missing"])
+                      + ".", ""]
+    return lines
+
+
 def failed_section(results):
     if not results.failed:
         return []
@@ -1201,6 +1495,9 @@ def render(data, command_text, elapsed=None, recorded=()):
     """The markdown of one run's JSON `data`; `recorded` holds (path, JSON)
     of runs recorded on other machines, shown after it."""
     results = Results(data)
+    figures = data.get("isk_python_blender")
+    if data.get("context", {}).get("isk_only_python"):
+        return only_python_render(results, figures, command_text)
     recorded = [(path, Results(other)) for path, other in recorded]
     lines = []
     lines += header_section(results, command_text, elapsed)
@@ -1214,9 +1511,26 @@ def render(data, command_text, elapsed=None, recorded=()):
     lines += scaling_section(results)
     lines += precompute_section(results)
     lines += fields_section(results)
+    lines += python_blender_section(results, figures)
     lines += failed_section(results)
     for path, other in recorded:
         lines += recorded_section(path, other)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def only_python_render(results, figures, command_text):
+    """The markdown of an --only-python run: its section alone."""
+    ctx = results.context
+    lines = ["# Benchmarks: Python and Blender only", "",
+             "Written by `bench/run_benchmarks.py --only-python` (no "
+             "isk_bench run, so no isk_bench column), by the command below:",
+             "", "```sh", command_text, "```", "",
+             f"- Run of {ctx.get('date', '?')} on host "
+             f"`{ctx.get('host_name', '?')}`: {ctx.get('num_cpus', '?')} "
+             "CPUs, load average before the run "
+             + ", ".join(f"{x:.2f}" for x in ctx.get("load_avg", [])) + ".",
+             ""]
+    lines += python_blender_section(results, figures)
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -1237,8 +1551,10 @@ def main():
                              "build/bench/isk_bench)")
     parser.add_argument("--json", help="where the JSON goes (default: "
                         "benchmarks.json next to the executable)")
-    parser.add_argument("--out", default=os.path.join(REPO, "bench", "BENCHMARKS.md"),
-                        help="the markdown written (default: bench/BENCHMARKS.md)")
+    parser.add_argument("--out",
+                        help="the markdown written (default: "
+                             "bench/BENCHMARKS.md; with --only-python "
+                             "python-blender.md beside the JSON)")
     parser.add_argument("--filter", help="--benchmark_filter passed on")
     parser.add_argument("--min-time", type=float,
                         help="--benchmark_min_time passed on (families with "
@@ -1250,20 +1566,68 @@ def main():
                         help="JSON of runs recorded on other machines, shown "
                              "after this run (default: bench/results/*.json;"
                              " none with an empty list)")
+    parser.add_argument("--only-python", action="store_true",
+                        help="run only bench/python_frames.py and "
+                             "bench/blender_frames.py, no isk_bench (JSON "
+                             "default: python-blender.json beside the "
+                             "executable)")
+    parser.add_argument("--skip-python", action="store_true",
+                        help="run isk_bench alone, without the Python and "
+                             "Blender frames")
+    parser.add_argument("--python-module",
+                        help="the folder holding the isk package (default: "
+                             "python/ in the build folder of --bench)")
+    parser.add_argument("--python",
+                        help="the interpreter of bench/python_frames.py "
+                             "(default: the build's Python3_EXECUTABLE, the "
+                             "one the module is built for)")
+    parser.add_argument("--blender", default="blender",
+                        help="the Blender executable (default: blender)")
+    parser.add_argument("--blender-zip",
+                        help="the add-on zip (default: isk_blender.zip in "
+                             "the build folder of --bench)")
     parser.add_argument("bench_args", nargs="*",
                         help="more isk_bench arguments (after --)")
     args = parser.parse_args()
 
+    if args.only_python and (args.from_json or args.skip_python):
+        parser.error("--only-python goes with neither --from-json nor "
+                     "--skip-python")
     elapsed = None
+    figures = None
+    script = ["python3", "bench/run_benchmarks.py"]
+    if os.path.abspath(args.bench) != os.path.join(REPO, "build", "bench",
+                                                  "isk_bench"):
+        script += ["--bench", shown_path(args.bench)]
+    for option in ("python_module", "blender_zip", "python"):
+        if getattr(args, option):
+            script += ["--" + option.replace("_", "-"),
+                       shown_path(getattr(args, option))]
+    if args.blender != "blender":
+        script += ["--blender", args.blender]
     if args.from_json:
         json_path = args.from_json
         command_text = None
+    elif args.only_python:
+        json_path = os.path.abspath(args.json or os.path.join(
+            os.path.dirname(os.path.abspath(args.bench)),
+            "python-blender.json"))
+        context = {"date": datetime.datetime.now().astimezone().isoformat(
+                       timespec="seconds"),
+                   "host_name": platform.node(), "num_cpus": os.cpu_count(),
+                   "load_avg": list(os.getloadavg()),
+                   "isk_only_python": True}
+        data = {"context": context, "benchmarks": [],
+                "isk_python_blender": run_python_and_blender(args)}
+        with open(json_path, "w") as f:
+            json.dump(data, f, indent=1)
+        command_text = shlex.join(script + ["--only-python"])
     else:
         json_path, command, elapsed = run_suite(args)
-        script = ["python3", "bench/run_benchmarks.py"]
-        if os.path.abspath(args.bench) != os.path.join(REPO, "build", "bench",
-                                                      "isk_bench"):
-            script += ["--bench", shown_path(args.bench)]
+        if args.skip_python:
+            script.append("--skip-python")
+        else:
+            figures = run_python_and_blender(args)
         if args.filter:
             script += ["--filter", args.filter]
         if args.min_time is not None:
@@ -1288,6 +1652,8 @@ def main():
     else:
         ctx["isk_run_command"] = command_text
         ctx["isk_run_seconds"] = elapsed
+        if figures is not None:
+            data["isk_python_blender"] = figures
         with open(json_path, "w") as f:
             json.dump(data, f, indent=1)
     if args.recorded is None:
@@ -1297,6 +1663,11 @@ def main():
     for path in args.recorded:
         with open(path) as f:
             recorded.append((shown_path(path), json.load(f)))
+    if args.out is None:
+        args.out = (os.path.join(os.path.dirname(json_path),
+                                 "python-blender.md")
+                    if ctx.get("isk_only_python")
+                    else os.path.join(REPO, "bench", "BENCHMARKS.md"))
     text = render(data, command_text, elapsed, recorded)
     with open(args.out, "w") as f:
         f.write(text)

@@ -283,6 +283,71 @@ class Render(unittest.TestCase):
         # The isolated import beside the in-process one.
         self.assertIn("| M | 2,612 | 4.000 | 32.00 | 8.0x |", text)
 
+    def test_python_and_blender_figures(self):
+        python = {"device": "PoCL / cpu", "frames": 60, "warmup": 5,
+                  "wall_seconds": 2.0, "missing": [],
+                  "command": "PYTHONPATH=build/python python3 "
+                             "bench/python_frames.py --json OUT.json",
+                  "models": [{
+                      "model": "CesiumMan", "vertices": 2612,
+                      "device": "PoCL / cpu",
+                      "implicit": {"python_ms": 2.2, "cpp_ms": 2.0,
+                                   "python_over_cpp": 1.1,
+                                   "overhead_ms": 0.2},
+                      "dqs": {"python_ms": 0.3, "cpp_ms": 0.2,
+                              "python_over_cpp": 1.5, "overhead_ms": 0.1}}]}
+        blender = {"blender": "3.4.1", "device": "PoCL / cpu",
+                   "wall_seconds": 6.0, "warmup": 5, "min_frames": 60,
+                   "missing": ["human-addon-animations.glb"],
+                   "models": [{
+                       "asset": "CesiumMan.glb", "vertices": 3273,
+                       "bones": 19, "clip_frames": 48,
+                       "armature": {"frame_ms": 2.0},
+                       "dqs": {"frame_ms": 4.0, "over_armature": 2.0,
+                               "handler_ms": 1.0, "module_ms": 0.2},
+                       "implicit": {"error": "Build failed"}}]}
+        data = document([implicit("CesiumMan", "opencl:0", 2.5, 2612),
+                         implicit("CesiumMan", "dqs:0", 0.25, 2612)])
+        data["isk_python_blender"] = {"python": python, "blender": blender}
+        text = run_benchmarks.render(data, "cmd")
+        section = text[text.index("## Python and Blender"):]
+        self.assertIn("`PYTHONPATH=build/python python3 "
+                      "bench/python_frames.py --json OUT.json`", section)
+        self.assertIn("| CesiumMan | 2,612 | implicit | 2.200 | 2.000 | "
+                      "1.10x | 0.200 | 2.500 | 0.88x |", section)
+        self.assertIn("| CesiumMan | 2,612 | DQS | 0.300 | 0.200 | 1.50x | "
+                      "0.100 | 0.250 | 1.20x |", section)
+        rows = [l for l in section.splitlines()
+                if l.startswith("| CesiumMan.glb")]
+        self.assertEqual(rows, [
+            "| CesiumMan.glb (3,273 v, 19 bones, 48 clip frames) | Armature "
+            "modifier | 2.000 | 1.00x |  |  |  |",
+            "| CesiumMan.glb (3,273 v, 19 bones, 48 clip frames) | add-on, "
+            "DQS | 4.000 | 2.00x | 1.000 | 0.200 | 3.000 |",
+            "| CesiumMan.glb (3,273 v, 19 bones, 48 clip frames) | add-on, "
+            "implicit | Build failed | n/a | n/a | n/a | n/a |"], section)
+        self.assertIn("Assets missing: human-addon-animations.glb.", section)
+        self.assertNotIn("nan", text.lower())
+
+    def test_python_and_blender_skipped_or_absent(self):
+        data = document([])
+        text = run_benchmarks.render(data, "cmd")
+        self.assertIn("## Python and Blender\n\nNot run", text)
+        data["isk_python_blender"] = {
+            "python": {"skipped": "no isk module in build/python"},
+            "blender": {"failed": "exit code 1"}}
+        text = run_benchmarks.render(data, "cmd")
+        self.assertIn("Python module: skipped: no isk module in "
+                      "build/python.", text)
+        self.assertIn("Blender: failed: exit code 1.", text)
+        # An --only-python JSON gives its section alone.
+        data["context"]["isk_only_python"] = True
+        text = run_benchmarks.render(data, "cmd --only-python")
+        self.assertTrue(text.startswith(
+            "# Benchmarks: Python and Blender only"), text)
+        self.assertIn("Blender: failed: exit code 1.", text)
+        self.assertNotIn("## Targets", text)
+
     def test_failed_runs_are_listed(self):
         failed = run("Implicit/M/opencl:0", 1.0)
         failed.update(error_occurred=True,
