@@ -280,6 +280,16 @@ void registerRig(py::module_& m) {
             return poseAt(r, bend, 1.0);
           },
           py::arg("degrees"))
+      .def(
+          "skinning_matrices",
+          [](const Rig& r, py::handle joint_world) {
+            // A DCC's joint world (model-space) matrices, times the
+            // inverse binds: what the skinners take.
+            return transformsArray(skinningTransforms(
+                r.skeleton, transformList(joint_world, "joint_world",
+                                          r.skeleton.jointCount())));
+          },
+          py::arg("joint_world"))
       .def("bind_pose",
            [](const Rig& r) {
              return transformsArray(bindPoseSkinning(r.skeleton));

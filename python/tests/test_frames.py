@@ -105,6 +105,24 @@ def test_bind_pose_reproduces_the_rest_mesh():
     assert np.allclose(positions, rig.rest_positions, atol=1e-5)
 
 
+@pytest.mark.parametrize("name", RIGS)
+def test_skinning_matrices_from_joint_world_matrices(name):
+    # A DCC hands over its joints' world matrices: times the inverse binds
+    # they are the poses the skinners take.
+    rig = load(rig_spec(name))
+    inverse_binds = rig.inverse_bind_matrices.astype(np.float64)
+    bind_world = np.linalg.inv(inverse_binds)
+    assert np.allclose(rig.skinning_matrices(bind_world), rig.bind_pose(),
+                       atol=1e-5)
+    pose = (rig.clip_pose(0, rig.clips[0].start + rig.clips[0].duration / 2)
+            if rig.clips else rig.bend_pose(60))
+    world = pose.astype(np.float64) @ bind_world
+    scale = max(1.0, float(np.abs(pose[:, :3, 3]).max()))
+    assert np.allclose(rig.skinning_matrices(world), pose, atol=1e-5 * scale)
+    with pytest.raises(ValueError, match="joint_world"):
+        rig.skinning_matrices(world[:-1])
+
+
 @pytest.mark.parametrize("device", DEVICES)
 def test_threads_get_the_frames_of_one_thread(device):
     # Frames run without the GIL; skinners sharing a device take turns.
