@@ -1231,9 +1231,11 @@ def precompute_section(results):
     lines += ["### OpenCL program builds (`ProgramBuild/`)", ""]
     progs = {}
     for key, run in results.family("ProgramBuild").items():
+        # ProgramBuild/<kernel file, in its stage folder>/<mode>:<device>
         if len(key) >= 3:
-            mode, d = split_device(key[2])
-            progs.setdefault((key[1], d), {})[mode] = run
+            mode, d = split_device(key[-1])
+            if d is not None:
+                progs.setdefault(("/".join(key[1:-1]), d), {})[mode] = run
     if progs:
         any_data = True
         lines += ["clCreateProgramWithSource + clBuildProgram of each "
