@@ -28,7 +28,8 @@
 // (ISK_CONTACT_ARG_COUNT consecutive kernel arguments, bound by
 // ClSurfaceTracking::setContactArgs):
 // each vertex's home field (-1: none) and rest margin; each field's partners
-// at this pose (activePartners: blend pairs turned by less than 90 degrees;
+// at this pose (activePartners: blend pairs turned by less than
+// blend_contact_degrees;
 // ISK_MAX_PARTNERS per field, -1 padded); the pose's field neighbourhoods
 // (fieldNeighbourhoods, split into cells by splitNeighbourhoodsIntoCells:
 // per home field h and cell c of its box, in
@@ -68,20 +69,52 @@
 // -1. lane_masks: per chunk and cell (chunk-major per home field: byte
 // (lane_offsets[h] * cells^3 + cell * chunks + k)) the lanes the cell lists.
 
+// The samples a point's listed fields took, for its blend and bulge pairs
+// (sample_tracking): the same values sample_field_culled gives, so that a
+// pair composes what it would have sampled again. `capacity` 0: none kept.
+#define ISK_PAIR_CACHE 16
+typedef struct {
+  uint fields[ISK_PAIR_CACHE];
+  float4 samples[ISK_PAIR_CACHE];
+  int count, capacity;
+} PairCache;
+
+ISK_INLINE void keep_sample(PairCache* cache, const uint field,
+                            const float4 s) {
+  if (cache->count < cache->capacity) {
+    cache->fields[cache->count] = field;
+    cache->samples[cache->count] = s;
+    ++cache->count;
+  }
+}
+
+// Field `field` at x: the kept sample, else sampled.
+ISK_INLINE float4 pair_sample(ISK_FIELD_PARAMS, const PairCache* cache,
+                              const uint field, const float3 x) {
+  for (int n = 0; n < cache->count; ++n)
+    if (cache->fields[n] == field) return cache->samples[n];
+  return sample_field_culled(field_data, field_params, field_cells, field,
+                             resolution, x);
+}
+
 // One listed field of sample_tracking (below) whose sphere and grid hold
 // the point, at node coordinates u in grid `grid` (the home field: its
-// sample, home_sample): the cell and bound tests, the sample, the unions.
+// sample, home_sample): the cell and bound tests, the sample (kept in
+// `cache`), the unions.
 ISK_INLINE void take_listed_field(
     ISK_FIELD_DATA_T field_data, __global const float4* field_params,
     __global const uchar* field_cells, const int resolution, const int entry,
     const uint grid, const float3 u, const int home, const float4 home_sample,
     const bool bounded, const float other_limit, float4* best, float4* h,
-    float4* other) {
+    float4* other, PairCache* cache) {
   const uint i = (uint)(entry & ISK_NEIGHBOUR_FIELD);
   float4 s = home_sample;
   if ((int)i != home) {
     const uint b = field_cells[cell_index(grid, resolution, u)];
-    if (b == 0u) return;  // zero at all 8 nodes
+    if (b == 0u) {  // zero at all 8 nodes
+      keep_sample(cache, i, (float4)(0.0f));
+      return;
+    }
     if (bounded && b < 255u) {
       const float bound = (float)b * (1.0f / 255.0f);
       if (bound < fmax(best->x, home_sample.x) &&
@@ -93,6 +126,7 @@ ISK_INLINE void take_listed_field(
         sample_grid_nodes(field_data, field_params, i, grid, resolution, u);
     s = (float4)(g.x, g.y * p[0].xyz + g.z * p[1].xyz + g.w * p[2].xyz);
   }
+  keep_sample(cache, i, s);
   // A zero value changes none of the unions, and the home sample is only
   // used where its value is above 0: skip the bookkeeping (a chain of
   // selects per listed field).
@@ -151,6 +185,13 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                                                  (float)(resolution - 1))),
                        (int3)(cells - 1));
     const int local_cell = c.x + cells * (c.y + cells * c.z);
+    const int pairs_begin = neighbour_pair_offsets[home];
+    const int pairs_end = neighbour_pair_offsets[home + 1];
+    // Kept only where the neighbourhood has pairs: their fields are listed,
+    // and a pair would sample them again.
+    PairCache cache;
+    cache.count = 0;
+    cache.capacity = pairs_end > pairs_begin ? ISK_PAIR_CACHE : 0;
 #if ISK_LANE_TESTS
     // The listed fields' sphere and grid tests eight at a time: the home
     // field's neighbourhood in chunks of 8 lanes (lane_params, the list's
@@ -196,7 +237,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
             field_data, field_params, field_cells, resolution,
             lane_entries[lane], (uint)lane_grids[lane],
             (float3)(lane_u[lane], lane_u[8 + lane], lane_u[16 + lane]), home,
-            home_sample, bounded, other_limit, &best, &h, &other);
+            home_sample, bounded, other_limit, &best, &h, &other, &cache);
       }
     }
 #else
@@ -215,15 +256,20 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
       }
       take_listed_field(field_data, field_params, field_cells, resolution,
                         entry, grid, u, home, home_sample, bounded,
-                        other_limit, &best, &h, &other);
+                        other_limit, &best, &h, &other, &cache);
     }
 #endif
-    const int pairs_end = neighbour_pair_offsets[home + 1];
-    for (int n = neighbour_pair_offsets[home]; n < pairs_end; ++n) {
+    // compose_one_pair's work with the samples the list took.
+    for (int n = pairs_begin; n < pairs_end; ++n) {
       const uint k = (uint)neighbour_pairs[n];
-      if (k < pair_count)
-        best = compose_one_pair(ISK_FIELD_ARGS, ISK_COMPOSITION_ARGS, x, k,
-                                best);
+      if (!(k < pair_count)) continue;
+      const int4 pair = pairs[k];
+      const float4 a = pair_sample(ISK_FIELD_ARGS, &cache, (uint)pair.x, x);
+      if (!(a.x > 0.0f)) continue;
+      const float4 b = pair_sample(ISK_FIELD_ARGS, &cache, (uint)pair.y, x);
+      if (!(b.x > 0.0f)) continue;
+      best = compose_union(best,
+                           compose_pair(ISK_COMPOSITION_ARGS, k, a, b));
     }
     *home_out = h;
     *other_out = other;
