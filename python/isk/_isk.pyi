@@ -139,6 +139,16 @@ class GeometricSkinner:
     @property
     def joint_count(self) -> int: ...
 
+class SkinQuality:
+    def __init__(self, rig: Rig, contact_radius: float = 0.05) -> None: ...
+    def measure(
+        self,
+        positions: ArrayLike,
+        dqs_positions: Optional[ArrayLike] = None,
+        lost: int = 0,
+    ) -> dict[str, Optional[Union[int, float]]]: ...
+    def summary(self) -> dict[str, Optional[Union[int, float]]]: ...
+
 def quality(
     rig: Rig,
     positions: ArrayLike,

@@ -2,6 +2,8 @@
 // (isk/tools/skin_quality.hpp) for one frame of a rig.
 #include <memory>
 #include <optional>
+#include <utility>
+#include <vector>
 
 #include "arrays.hpp"
 #include "bindings.hpp"
@@ -13,36 +15,20 @@ namespace isk::python {
 
 namespace {
 
-py::dict quality(const Rig& rig, py::handle positions_in, py::handle dqs_in,
-                 float contact_radius) {
-  const int n = rig.mesh.vertexCount();
-  const Matrix3Xf positions = matrix3Xf(positions_in, "positions", n);
-  std::optional<Matrix3Xf> dqs;
-  if (!dqs_in.is_none()) dqs = matrix3Xf(dqs_in, "dqs_positions", n);
-  FrameQuality frame;
-  int rest_pairs = 0;
-  double rest_volume = 0;
-  {
-    py::gil_scoped_release release;
-    // Welded at the seams as isk-skin's report is without a tracking mesh.
-    SkinQualityOptions options;
-    options.contact_radius = contact_radius;
-    SkinQuality measure(rig.mesh, coincidentVertexGroups(rig.mesh.positions),
-                        options);
-    frame = measure.measure(positions, dqs ? &*dqs : nullptr);
-    rest_pairs = static_cast<int>(measure.restPairs().size());
-    rest_volume = measure.restVolume();
-  }
+using RigPtr = std::shared_ptr<Rig>;
+
+py::object optional(const std::optional<double>& value) {
+  return value ? py::cast(*value) : py::none();
+}
+
+py::dict frameDict(const FrameQuality& frame, const SkinQuality& measure) {
   py::dict out;
   out["self_intersections"] = frame.self_intersections;
   out["new_self_intersections"] = frame.new_self_intersections;
-  out["rest_self_intersections"] = rest_pairs;
-  out["volume_ratio"] =
-      frame.volume_ratio ? py::cast(*frame.volume_ratio) : py::none();
-  out["covered_volume_ratio"] = frame.covered_volume_ratio
-                                    ? py::cast(*frame.covered_volume_ratio)
-                                    : py::none();
-  out["rest_volume"] = rest_volume;
+  out["rest_self_intersections"] = static_cast<int>(measure.restPairs().size());
+  out["volume_ratio"] = optional(frame.volume_ratio);
+  out["covered_volume_ratio"] = optional(frame.covered_volume_ratio);
+  out["rest_volume"] = measure.restVolume();
   out["edge_strain_mean"] = frame.edge_strain_mean;
   out["edge_strain_max"] = frame.edge_strain_max;
   out["contact_region_vertices"] = frame.contact_region_vertices;
@@ -51,12 +37,96 @@ py::dict quality(const Rig& rig, py::handle positions_in, py::handle dqs_in,
   return out;
 }
 
+// Welded at the seams as isk-skin's report is without a tracking mesh.
+std::unique_ptr<SkinQuality> makeMeasure(const Rig& rig, float contact_radius) {
+  SkinQualityOptions options;
+  options.contact_radius = contact_radius;
+  return std::make_unique<SkinQuality>(
+      rig.mesh, coincidentVertexGroups(rig.mesh.positions), options);
+}
+
+// The frames of one clip in order: SkinQuality, whose jitter needs the two
+// frames before.
+class ClipQuality {
+ public:
+  ClipQuality(RigPtr rig, float contact_radius) : rig_(std::move(rig)) {
+    py::gil_scoped_release release;
+    measure_ = makeMeasure(*rig_, contact_radius);
+  }
+
+  py::dict measure(py::handle positions_in, py::handle dqs_in, int lost) {
+    const int n = rig_->mesh.vertexCount();
+    const Matrix3Xf positions = matrix3Xf(positions_in, "positions", n);
+    std::optional<Matrix3Xf> dqs;
+    if (!dqs_in.is_none()) dqs = matrix3Xf(dqs_in, "dqs_positions", n);
+    if (lost < 0) fail("lost", "expected a count >= 0");
+    FrameQuality frame;
+    {
+      py::gil_scoped_release release;
+      frame =
+          measure_->measure(positions, dqs ? &*dqs : nullptr, nullptr, lost);
+    }
+    frames_.push_back(frame);
+    py::dict out = frameDict(frame, *measure_);
+    out["jitter_mean"] = optional(frame.jitter_mean);
+    out["jitter_max"] = optional(frame.jitter_max);
+    out["lost_vertices"] = frame.lost_vertices;
+    return out;
+  }
+
+  py::dict summary() const {
+    const QualitySummary s = summarizeQuality(frames_);
+    py::dict out;
+    out["frames"] = s.frames;
+    out["new_self_intersections_max"] = s.new_self_intersections_max;
+    out["new_self_intersections_total"] = s.new_self_intersections_total;
+    out["volume_ratio_min"] = optional(s.volume_ratio_min);
+    out["volume_ratio_max"] = optional(s.volume_ratio_max);
+    out["covered_volume_ratio_min"] = optional(s.covered_volume_ratio_min);
+    out["covered_volume_ratio_max"] = optional(s.covered_volume_ratio_max);
+    out["edge_strain_mean"] = s.edge_strain_mean;
+    out["edge_strain_max"] = s.edge_strain_max;
+    out["dqs_distance_max"] = s.dqs_distance_max;
+    out["jitter_max"] = optional(s.jitter_max);
+    out["lost_vertices_max"] = s.lost_vertices_max;
+    out["worst_frame"] = s.worst_frame;
+    return out;
+  }
+
+ private:
+  RigPtr rig_;
+  std::unique_ptr<SkinQuality> measure_;
+  std::vector<FrameQuality> frames_;
+};
+
+py::dict quality(const Rig& rig, py::handle positions_in, py::handle dqs_in,
+                 float contact_radius) {
+  const int n = rig.mesh.vertexCount();
+  const Matrix3Xf positions = matrix3Xf(positions_in, "positions", n);
+  std::optional<Matrix3Xf> dqs;
+  if (!dqs_in.is_none()) dqs = matrix3Xf(dqs_in, "dqs_positions", n);
+  std::unique_ptr<SkinQuality> measure;
+  FrameQuality frame;
+  {
+    py::gil_scoped_release release;
+    measure = makeMeasure(rig, contact_radius);
+    frame = measure->measure(positions, dqs ? &*dqs : nullptr);
+  }
+  return frameDict(frame, *measure);
+}
+
 }  // namespace
 
 void registerQuality(py::module_& m) {
   m.def("quality", &quality, py::arg("rig"), py::arg("positions"),
         py::arg("dqs_positions") = py::none(),
         py::arg("contact_radius") = SkinQualityOptions{}.contact_radius);
+  py::class_<ClipQuality>(m, "SkinQuality")
+      .def(py::init<RigPtr, float>(), py::arg("rig"),
+           py::arg("contact_radius") = SkinQualityOptions{}.contact_radius)
+      .def("measure", &ClipQuality::measure, py::arg("positions"),
+           py::arg("dqs_positions") = py::none(), py::arg("lost") = 0)
+      .def("summary", &ClipQuality::summary);
 }
 
 }  // namespace isk::python

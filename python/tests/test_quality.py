@@ -105,6 +105,7 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
     rig = load(spec)
     skinner = isk.GeometricSkinner(rig, method=method, device="reference")
     dqs = isk.GeometricSkinner(rig, method="dqs", device="reference")
+    clip_quality = isk.SkinQuality(rig)
     for i in range(frames):
         if name in BUILTIN_RIGS:
             pose = rig.bend_pose(120 * i / (frames - 1)) if i else \
@@ -115,14 +116,26 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
         positions, _ = skinner.deform(pose)
         reference = dqs.deform(pose)[0] if method == "lbs" else None
         q = isk.quality(rig, positions, dqs_positions=reference)
+        # The clip's measure: the same, plus the jitter over three frames.
+        c = clip_quality.measure(positions, dqs_positions=reference)
+        assert set(c) == set(q) | {"jitter_mean", "jitter_max",
+                                   "lost_vertices"}
         for key in ("self_intersections", "new_self_intersections",
-                    "contact_region_vertices"):
-            assert q[key] == expected[i][key], (i, key)
+                    "contact_region_vertices", "lost_vertices"):
+            assert q.get(key, 0) == expected[i][key], (i, key)
+            assert c[key] == expected[i][key], (i, key)
         for key in ("volume_ratio", "covered_volume_ratio",
                     "edge_strain_mean", "edge_strain_max",
-                    "dqs_distance_mean", "dqs_distance_max"):
-            if expected[i][key] is None:
-                assert q[key] is None, (i, key)
-            else:
-                assert q[key] == pytest.approx(expected[i][key], rel=1e-9,
-                                               abs=1e-12), (i, key)
+                    "dqs_distance_mean", "dqs_distance_max", "jitter_mean",
+                    "jitter_max"):
+            for measured in ([q, c] if key in q else [c]):
+                if expected[i][key] is None:
+                    assert measured[key] is None, (i, key)
+                else:
+                    assert measured[key] == pytest.approx(
+                        expected[i][key], rel=1e-9, abs=1e-12), (i, key)
+    assert (c["jitter_max"] is not None) == (frames >= 3)
+    summary = clip_quality.summary()
+    assert summary["frames"] == frames
+    assert summary["new_self_intersections_total"] == sum(
+        f["new_self_intersections"] for f in expected)
