@@ -96,6 +96,23 @@ py::dict implicitTimes(const ImplicitStageTimes& t) {
   return out;
 }
 
+// The last frame's positions or normals of a skinner's device or CPU
+// reference (one of them set). The lock is taken without the GIL, so that a
+// thread waiting for it never blocks one that needs the GIL back.
+template <typename Device, typename Reference>
+Matrix3Xf readLastFrame(std::mutex& mutex, Device* device, Reference* reference,
+                        bool positions) {
+  py::gil_scoped_release release;
+  std::lock_guard<std::mutex> lock(mutex);
+  Matrix3Xf out;
+  if (device) {
+    positions ? device->readPositions(out) : device->readNormals(out);
+  } else {
+    positions ? reference->readPositions(out) : reference->readNormals(out);
+  }
+  return out;
+}
+
 class PyImplicitSkinner {
  public:
   PyImplicitSkinner(RigPtr rig, const std::string& device,
@@ -221,19 +238,8 @@ class PyImplicitSkinner {
   double buildMs() const { return build_ms_; }
 
  private:
-  // The last frame's positions or normals. The lock is taken without the
-  // GIL, so that a thread waiting for it never blocks one that needs the
-  // GIL back.
   Matrix3Xf read(bool positions) {
-    py::gil_scoped_release release;
-    std::lock_guard<std::mutex> lock(*mutex_);
-    Matrix3Xf out;
-    if (device_) {
-      positions ? device_->readPositions(out) : device_->readNormals(out);
-    } else {
-      positions ? reference_->readPositions(out) : reference_->readNormals(out);
-    }
-    return out;
+    return readLastFrame(*mutex_, device_.get(), reference_.get(), positions);
   }
 
   RigPtr rig_;
@@ -299,17 +305,8 @@ class PyGeometricSkinner {
   double lastFrameMs() const { return last_frame_ms_; }
 
  private:
-  // As PyImplicitSkinner::read.
   Matrix3Xf read(bool positions) {
-    py::gil_scoped_release release;
-    std::lock_guard<std::mutex> lock(*mutex_);
-    Matrix3Xf out;
-    if (device_) {
-      positions ? device_->readPositions(out) : device_->readNormals(out);
-    } else {
-      positions ? reference_->readPositions(out) : reference_->readNormals(out);
-    }
-    return out;
+    return readLastFrame(*mutex_, device_.get(), reference_.get(), positions);
   }
 
   RigPtr rig_;
