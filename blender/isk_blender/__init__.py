@@ -284,6 +284,7 @@ class ISK_OT_build(bpy.types.Operator):
         return isk.ImplicitSkinner(
             rig, device=settings.device, operator=settings.operator,
             joint_operators=parse_joint_operators(settings.joint_operators),
+            bulge_strength=settings.bulge_strength,
             rounds=settings.rounds, sigma=settings.sigma,
             contact_angle=settings.contact_angle,
             smoothing_steps=settings.smoothing_steps,
@@ -336,6 +337,10 @@ class IskSettings(bpy.types.PropertyGroup):
         name="Base", default='dqs',
         description="The geometric skinning the tracking starts from",
         items=[('dqs', "DQS", ""), ('lbs', "LBS", "")])
+    bulge_strength: FloatProperty(
+        name="Bulge strength", default=1.0, min=0.0, max=1.0,
+        description="How much the bulge operator inflates the skin around "
+                    "a contact (0: a union); joints whose operator is bulge")
     rounds: IntProperty(name="Rounds", default=8, min=0, max=100,
                         description="Surface tracking rounds per frame")
     sigma: FloatProperty(name="Sigma", default=0.35, min=0.01, max=1.0,
@@ -389,6 +394,7 @@ class ISK_PT_panel(bpy.types.Panel):
         if settings.method == 'implicit':
             layout.prop(settings, "operator")
             layout.prop(settings, "joint_operators")
+            layout.prop(settings, "bulge_strength")
             box = layout.box()
             box.label(text="Tracking")
             box.prop(settings, "base_skinning")

@@ -88,6 +88,8 @@ class ImplicitSkinner:
         device: Device = "opencl",
         operator: Operator = "union",
         joint_operators: Optional[Mapping[str, Operator]] = None,
+        bulge_strength: Optional[float] = None,
+        blend_theta: Optional[float] = None,
         rounds: Optional[int] = None,
         sigma: Optional[float] = None,
         contact_angle: Optional[float] = None,

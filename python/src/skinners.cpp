@@ -117,6 +117,8 @@ class PyImplicitSkinner {
  public:
   PyImplicitSkinner(RigPtr rig, const std::string& device,
                     const std::string& op, py::object joint_operators,
+                    std::optional<double> bulge_strength,
+                    std::optional<double> blend_theta,
                     std::optional<int> rounds, std::optional<float> sigma,
                     std::optional<float> contact_angle,
                     std::optional<int> smoothing_steps,
@@ -142,6 +144,9 @@ class PyImplicitSkinner {
             parseOperator(py::str(value), "joint_operators['" + name + "']");
       }
     }
+    // Validated with the fields' options (buildImplicitFields).
+    if (bulge_strength) composition.bulge_strength = *bulge_strength;
+    if (blend_theta) composition.blend_theta = *blend_theta;
     SurfaceTrackingOptions& tracking = options.tracking;
     if (rounds) tracking.rounds = *rounds;
     if (sigma) tracking.sigma = *sigma;
@@ -326,6 +331,7 @@ void registerSkinners(py::module_& m) {
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
       .def(py::init<RigPtr, const std::string&, const std::string&, py::object,
+                    std::optional<double>, std::optional<double>,
                     std::optional<int>, std::optional<float>,
                     std::optional<float>, std::optional<int>,
                     std::optional<bool>, const std::string&,
@@ -333,8 +339,9 @@ void registerSkinners(py::module_& m) {
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
-           py::arg("rounds") = py::none(), py::arg("sigma") = py::none(),
-           py::arg("contact_angle") = py::none(),
+           py::arg("bulge_strength") = py::none(),
+           py::arg("blend_theta") = py::none(), py::arg("rounds") = py::none(),
+           py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),
            py::arg("smoothing_steps") = py::none(),
            py::arg("relaxation") = py::none(), py::arg("base_skinning") = "dqs",
            py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())

@@ -72,6 +72,30 @@ def test_bend_pose_with_operators_equals_cpp(tmp_path, operator, device):
     assert_same_frames(skinner, reference, poses, True)
 
 
+def test_operator_controllers_shape_the_frames():
+    # The bulge's strength and the blend's theta reach the operators: other
+    # frames at a bend, and the fields' validation for values out of range.
+    rig = isk.builtin_rig("arm")
+    pose = rig.bend_pose(120)
+    frames = {}
+    for key, options in {"bulge": dict(operator="bulge"),
+                         "bulge 0.3": dict(operator="bulge",
+                                           bulge_strength=0.3),
+                         "blend": dict(operator="blend"),
+                         "blend 0.5": dict(operator="blend",
+                                           blend_theta=0.5)}.items():
+        skinner = isk.ImplicitSkinner(rig, device="reference", **options)
+        frames[key] = skinner.deform(pose)[0]
+    assert not np.array_equal(frames["bulge"], frames["bulge 0.3"])
+    assert not np.array_equal(frames["blend"], frames["blend 0.5"])
+    with pytest.raises(isk.InvalidArgumentError, match="bulge_strength"):
+        isk.ImplicitSkinner(rig, device="reference", operator="bulge",
+                            bulge_strength=1.5)
+    with pytest.raises(isk.InvalidArgumentError, match="blend_theta"):
+        isk.ImplicitSkinner(rig, device="reference", operator="blend",
+                            blend_theta=-0.1)
+
+
 @pytest.mark.parametrize("name", BUILTIN_RIGS)
 def test_rig_from_arrays_skins_as_the_original(name):
     rig = isk.builtin_rig(name)
