@@ -25,7 +25,7 @@ const std::vector<std::string>& assetNames();
 // Loads an asset of the data folder (cached per process; each test copies).
 const Rig& loadAsset(const std::string& file);
 
-// A procedural rig by name ("cylinder", "finger", "arm") or an asset file of
+// A procedural rig by name (builtinRigNames()) or an asset file of
 // the data folder (cached per process).
 const Rig& rigNamed(const std::string& name);
 // The implicit fields of rigNamed(name), built with default options (cached).

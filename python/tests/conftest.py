@@ -10,7 +10,7 @@ import pytest
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 # The procedural rigs every property is checked on; the assets add to them.
-BUILTIN_RIGS = ["cylinder", "finger", "arm"]
+BUILTIN_RIGS = ["cylinder", "finger", "arm", "sleeved-arm", "leg"]
 ASSETS = ["CesiumMan.glb", "fox-animations.glb"]
 
 

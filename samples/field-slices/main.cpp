@@ -344,7 +344,8 @@ int main(int argc, char** argv) {
       "in a plane along its skeleton, like Figures 2f and 3c of Vaillant et "
       "al. 2013, with an index.md."};
   app.add_option("--rig", options.rig,
-                 "builtin rig (cylinder, finger, arm; also builtin:NAME) or "
+                 "builtin rig (cylinder, finger, arm, sleeved-arm, leg; also "
+                 "builtin:NAME) or "
                  "an asset file (glTF, FBX, COLLADA, .x, ...)")
       ->capture_default_str();
   app.add_option("--out", options.out_dir, "output folder")

@@ -27,7 +27,57 @@ struct TubeSpec {
   int rings = 64;
   int segments = 48;
   float blend_width = 0.25f;  // in lengths of the shorter adjacent bone
+  // A sleeve: a closed shell around the tube from x = 0 to sleeve_end (0:
+  // none), between sleeve_inner and sleeve_outer times the tube's radii,
+  // another mesh part ("sleeve") weighted as the skin under it, as clothes
+  // are.
+  float sleeve_end = 0.f;
+  float sleeve_inner = 1.05f, sleeve_outer = 1.12f;
 };
+
+// Appends a closed shell around the tube to positions and triangles: two
+// open tubes (outer wound outward, inner inward) joined by annular rims.
+void appendSleeve(const TubeSpec& spec, int rings,
+                  std::vector<Eigen::Vector3f>& positions,
+                  std::vector<Eigen::Vector3i>& triangles) {
+  const int segments = spec.segments;
+  const int first = static_cast<int>(positions.size());
+  for (int layer = 0; layer < 2; ++layer) {
+    const float scale = layer == 0 ? spec.sleeve_outer : spec.sleeve_inner;
+    for (int i = 0; i < rings; ++i) {
+      const float x = spec.sleeve_end * i / (rings - 1);
+      const Eigen::Vector2f r = spec.radii(x) * scale;
+      for (int s = 0; s < segments; ++s) {
+        const float a = 2.f * kPi * s / segments;
+        positions.emplace_back(x, r.x() * std::cos(a), r.y() * std::sin(a));
+      }
+    }
+  }
+  auto at = [&](int layer, int i, int s) {
+    return first + (layer * rings + i) * segments + (s % segments);
+  };
+  for (int i = 0; i + 1 < rings; ++i) {
+    for (int s = 0; s < segments; ++s) {
+      // Outer layer as the tube's side (outward); inner layer reversed.
+      triangles.emplace_back(at(0, i, s), at(0, i + 1, s + 1), at(0, i + 1, s));
+      triangles.emplace_back(at(0, i, s), at(0, i, s + 1), at(0, i + 1, s + 1));
+      triangles.emplace_back(at(1, i, s), at(1, i + 1, s), at(1, i + 1, s + 1));
+      triangles.emplace_back(at(1, i, s), at(1, i + 1, s + 1), at(1, i, s + 1));
+    }
+  }
+  for (int end = 0; end < 2; ++end) {  // rims, facing -x then +x
+    const int i = end == 0 ? 0 : rings - 1;
+    for (int s = 0; s < segments; ++s) {
+      if (end == 0) {
+        triangles.emplace_back(at(0, i, s), at(1, i, s), at(1, i, s + 1));
+        triangles.emplace_back(at(0, i, s), at(1, i, s + 1), at(0, i, s + 1));
+      } else {
+        triangles.emplace_back(at(0, i, s), at(1, i, s + 1), at(1, i, s));
+        triangles.emplace_back(at(0, i, s), at(0, i, s + 1), at(1, i, s + 1));
+      }
+    }
+  }
+}
 
 Rig makeTubeRig(const TubeSpec& spec) {
   const int bones = static_cast<int>(spec.joint_x.size()) - 1;
@@ -97,6 +147,14 @@ Rig makeTubeRig(const TubeSpec& spec) {
     }
   }
 
+  const int skin_vertices = static_cast<int>(positions.size());
+  const int skin_triangles = static_cast<int>(triangles.size());
+  if (spec.sleeve_end > 0.f) {
+    const int sleeve_rings =
+        std::max(2, static_cast<int>(rings * spec.sleeve_end / length));
+    appendSleeve(spec, sleeve_rings, positions, triangles);
+  }
+
   Mesh& mesh = rig.mesh;
   const int n = static_cast<int>(positions.size());
   mesh.positions.resize(n, 3);
@@ -114,8 +172,12 @@ Rig makeTubeRig(const TubeSpec& spec) {
     for (int k = 0; k < 3; ++k) mesh.normals.row(t[k]) += face.transpose();
   }
   for (int v = 0; v < n; ++v) mesh.normals.row(v).normalize();
-  mesh.parts.push_back(
-      {spec.name, 0, n, 0, static_cast<int>(triangles.size())});
+  mesh.parts.push_back({spec.name, 0, skin_vertices, 0, skin_triangles});
+  if (n > skin_vertices) {
+    mesh.parts.push_back({"sleeve", skin_vertices, n - skin_vertices,
+                          skin_triangles,
+                          static_cast<int>(triangles.size()) - skin_triangles});
+  }
 
   // Skeleton: a chain along +x, identity rotations.
   for (int j = 0; j <= bones; ++j) {
@@ -194,11 +256,9 @@ Rig makeCylinderRig(const CylinderRigOptions& options) {
   return makeTubeRig(spec);
 }
 
-Rig makeArmRig(int rings_per_unit, int segments) {
-  if (rings_per_unit < 1 || segments < 3) {
-    throw Error(ErrorCode::kInvalidArgument,
-                "makeArmRig: need rings_per_unit >= 1 and segments >= 3");
-  }
+namespace {
+
+TubeSpec armSpec(int rings_per_unit, int segments) {
   TubeSpec spec;
   spec.name = "arm";
   spec.joint_x = {0.f, 3.f, 5.6f, 7.4f};
@@ -218,11 +278,60 @@ Rig makeArmRig(int rings_per_unit, int segments) {
   spec.rings = static_cast<int>(7.4f * rings_per_unit) + 1;
   spec.segments = segments;
   spec.blend_width = 0.2f;
+  return spec;
+}
+
+}  // namespace
+
+Rig makeArmRig(int rings_per_unit, int segments) {
+  if (rings_per_unit < 1 || segments < 3) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "makeArmRig: need rings_per_unit >= 1 and segments >= 3");
+  }
+  return makeTubeRig(armSpec(rings_per_unit, segments));
+}
+
+Rig makeSleevedArmRig(int rings_per_unit, int segments) {
+  if (rings_per_unit < 1 || segments < 3) {
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "makeSleevedArmRig: need rings_per_unit >= 1 and segments >= 3");
+  }
+  TubeSpec spec = armSpec(rings_per_unit, segments);
+  spec.name = "sleeved-arm";
+  spec.sleeve_end = 4.6f;  // past the elbow, to the middle of the forearm
+  return makeTubeRig(spec);
+}
+
+Rig makeLegRig(int rings_per_unit, int segments) {
+  if (rings_per_unit < 1 || segments < 3) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "makeLegRig: need rings_per_unit >= 1 and segments >= 3");
+  }
+  TubeSpec spec;
+  spec.name = "leg";
+  spec.joint_x = {0.f, 4.5f, 8.5f, 10.3f};
+  spec.joint_names = {"hip", "knee", "ankle", "toe_tip"};
+  // A thick thigh narrowing to the knee, a calf, a narrow ankle and a flat
+  // foot (flattened as the arm's hand).
+  spec.radii = [](float x) {
+    static const float xs[] = {0.f, 2.0f, 4.5f, 5.8f, 8.5f, 9.3f, 10.3f};
+    static const float ry[] = {0.95f, 0.80f, 0.55f, 0.62f, 0.33f, 0.45f, 0.35f};
+    static const float rz[] = {0.95f, 0.80f, 0.55f, 0.60f, 0.30f, 0.22f, 0.14f};
+    int i = 0;
+    while (i + 2 < 7 && x > xs[i + 1]) ++i;
+    const float a = smoothstep(xs[i], xs[i + 1], x);
+    return Eigen::Vector2f((1 - a) * ry[i] + a * ry[i + 1],
+                           (1 - a) * rz[i] + a * rz[i + 1]);
+  };
+  spec.rings = static_cast<int>(10.3f * rings_per_unit) + 1;
+  spec.segments = segments;
+  spec.blend_width = 0.2f;
   return makeTubeRig(spec);
 }
 
 std::vector<std::string> builtinRigNames() {
-  return {"cylinder", "finger", "arm"};
+  return {"cylinder", "finger", "arm", "sleeved-arm", "leg"};
 }
 
 Rig makeBuiltinRig(const std::string& name) {
@@ -242,6 +351,8 @@ Rig makeBuiltinRig(const std::string& name) {
     return makeTubeRig(spec);
   }
   if (name == "arm") return makeArmRig();
+  if (name == "sleeved-arm") return makeSleevedArmRig();
+  if (name == "leg") return makeLegRig();
   std::string names;
   for (const std::string& n : builtinRigNames())
     names += (names.empty() ? "" : ", ") + n;

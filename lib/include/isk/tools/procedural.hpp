@@ -35,12 +35,26 @@ Rig makeCylinderRig(const CylinderRigOptions& options = {});
 // isk::Error(kInvalidArgument).
 Rig makeArmRig(int rings_per_unit = 12, int segments = 40);
 
-// The names accepted by makeBuiltinRig ("cylinder", "finger", "arm").
+// The arm above dressed in a sleeve: a closed shell (another mesh part,
+// "sleeve", 1.05 to 1.12 times the arm's radii) from the shoulder past the
+// elbow to the middle of the forearm, weighted as the skin under it -- two
+// layers sharing bones, as clothes over a body. Coarser by default (8 rings
+// per unit, 32 segments). Same argument checks as makeArmRig.
+Rig makeSleevedArmRig(int rings_per_unit = 8, int segments = 32);
+
+// A leg: thigh, calf and a flattened foot on a 4-joint chain (hip, knee,
+// ankle, toe tip), about 10 model units along +x, thicker than the arm --
+// for knee bends to 150 degrees and beyond, where the calf presses on the
+// thigh. Same argument checks as makeArmRig.
+Rig makeLegRig(int rings_per_unit = 8, int segments = 40);
+
+// The names accepted by makeBuiltinRig ("cylinder", "finger", "arm",
+// "sleeved-arm", "leg").
 std::vector<std::string> builtinRigNames();
 
 // Builds a named procedural rig: "cylinder" (2 bones, radius 1, length 8),
-// "finger" (3 tapered phalanges) or "arm". Throws isk::Error
-// (kInvalidArgument) listing the valid names for any other name.
+// "finger" (3 tapered phalanges), "arm", "sleeved-arm" or "leg". Throws
+// isk::Error (kInvalidArgument) listing the valid names for any other name.
 Rig makeBuiltinRig(const std::string& name);
 
 }  // namespace isk
