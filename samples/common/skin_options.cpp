@@ -198,7 +198,11 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "floats: half the device memory, frames within a small "
                      "fraction of the mesh's size)")
           ->check(CLI::IsMember({"float", "half"}))
-          ->capture_default_str()};
+          ->capture_default_str(),
+      app.add_flag("!--no-layers", options.skin_only,
+                   "implicit: fit the layers around the skin (clothes, "
+                   "found by bone_partition.hpp's rule) with it, instead of "
+                   "leaving them out of the fit to follow the skin's field")};
 }
 
 // The parameter file of the run: --params, else <INPUT>.isk.json beside a
@@ -431,6 +435,7 @@ ImplicitFieldsOptions fieldOptions(
   if (params) field_options = *params;
   if (options.grid_precision == "half")
     field_options.grid_precision = GridPrecision::kHalf;
+  if (!options.skin_only) field_options.sampling.skin_only = false;
   // Fields are cached on disk (ISK_CACHE_DIR; "off" disables it).
   field_options.cache = true;
   return field_options;

@@ -59,6 +59,7 @@ struct Options {
   // Surface tracking (--method implicit); defaults are the paper's.
   SurfaceTrackingOptions tracking;
   std::string grid_precision = "float";  // implicit: "float" or "half"
+  bool skin_only = true;  // implicit: layers left out of the fit (--no-layers)
   bool tracking_given = false;
 };
 

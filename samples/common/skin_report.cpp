@@ -139,6 +139,10 @@ nlohmann::json implicitFieldsSection(const ImplicitFields& fields,
   section["operators"] = operators;
   section["fields"] = fields.grids.fieldCount();
   section["grid_precision"] = gridPrecisionName(fields.grids.precision);
+  int layer_vertices = 0;
+  for (const uint8_t layer : fields.partition.vertex_layer)
+    layer_vertices += layer;
+  section["layer_vertices"] = layer_vertices;
   section["build_ms"] = drift.build_ms;
   section["upload_ms"] = drift.upload_ms;
   section["operator_tables_mib"] = composition.tableBytes() / kMiB;

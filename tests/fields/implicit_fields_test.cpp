@@ -59,10 +59,13 @@ void checkPartition(const std::string& name) {
     ASSERT_GE(own + 1e-6f, rig.weights.weights[rig.weights.offsets[v]])
         << "vertex " << v << " went to joint " << j;
   }
-  // Every vertex in exactly one part; every triangle in exactly one part.
+  // Every vertex in exactly one part; every triangle in exactly one part,
+  // among its skin or its layers.
   size_t vertices = 0, triangles = 0;
   for (const auto& part : p.part_vertices) vertices += part.size();
   for (const auto& part : p.part_triangles) triangles += part.size();
+  for (const auto& part : p.layer_triangles) triangles += part.size();
+  ASSERT_EQ(p.vertex_layer.size(), static_cast<size_t>(rig.mesh.vertexCount()));
   EXPECT_EQ(vertices, static_cast<size_t>(rig.mesh.vertexCount()));
   EXPECT_EQ(triangles, static_cast<size_t>(rig.mesh.triangleCount()));
   // Skin joints without vertices are reported by name.
@@ -78,6 +81,117 @@ void checkPartition(const std::string& name) {
 TEST(ImplicitFields, PartitionOnProceduralRigs) {
   FOR_PROCEDURAL_RIGS(checkPartition);
 }
+// Distance from p to the triangle (a, b, c): to the plane's foot when it
+// falls inside, else to the nearest edge.
+double pointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& b,
+                             const Eigen::Vector3d& c) {
+  auto segment = [&](const Eigen::Vector3d& u, const Eigen::Vector3d& v) {
+    const Eigen::Vector3d d = v - u;
+    const double t = std::clamp((p - u).dot(d) / d.squaredNorm(), 0.0, 1.0);
+    return (p - (u + t * d)).norm();
+  };
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  if (n.squaredNorm() > 0) {
+    const Eigen::Vector3d foot = p - (p - a).dot(n) / n.squaredNorm() * n;
+    const bool inside = (b - a).cross(foot - a).dot(n) >= 0 &&
+                        (c - b).cross(foot - b).dot(n) >= 0 &&
+                        (a - c).cross(foot - c).dot(n) >= 0;
+    if (inside) return (p - foot).norm();
+  }
+  return std::min({segment(a, b), segment(b, c), segment(c, a)});
+}
+
+// Layers (bone_partition.hpp): a sleeve around the procedural arm is found
+// and left out of the fit; the skin's field carries it at its offset iso
+// value. No procedural rig without clothes has one, and neither has any
+// shared asset (their extra components are eyes, teeth and pieces that do
+// not wrap a bone as clothes do).
+TEST(ImplicitFields, LayersAreLeftOutOfTheFit) {
+  const Rig rig = makeSleevedArmRig();
+  ASSERT_EQ(rig.mesh.parts.size(), 2u);
+  const MeshPart& sleeve = rig.mesh.parts[1];
+  const ImplicitFields fields = buildImplicitFields(rig);
+  const BonePartition& p = fields.partition;
+  int flagged = 0;
+  double sleeve_iso = 0, skin_iso = 0;
+  int sleeve_count = 0, skin_count = 0;
+  for (int v = 0; v < rig.mesh.vertexCount(); ++v) {
+    const bool in_sleeve = v >= sleeve.first_vertex &&
+                           v < sleeve.first_vertex + sleeve.vertex_count;
+    // The sleeve lies on the upper arm and forearm: every one of its
+    // vertices is a layer of its part, and no skin vertex is.
+    EXPECT_EQ(p.vertex_layer[v] != 0, in_sleeve) << "vertex " << v;
+    flagged += p.vertex_layer[v];
+    // Tracked by the skin's field.
+    if (in_sleeve) EXPECT_GT(fields.iso_values[v], 0.f) << "vertex " << v;
+    if (rig.mesh.positions(v, 0) < 0.9f * 4.6f) {  // under the sleeve
+      (in_sleeve ? sleeve_iso : skin_iso) += fields.iso_values[v];
+      ++(in_sleeve ? sleeve_count : skin_count);
+    }
+  }
+  EXPECT_EQ(flagged, sleeve.vertex_count);
+  // Outside the skin: lower values than the skin under it.
+  EXPECT_LT(sleeve_iso / sleeve_count, skin_iso / skin_count - 0.02);
+  for (int t = 0; t < rig.mesh.triangleCount(); ++t) {
+    const bool in_sleeve = t >= sleeve.first_triangle;
+    const auto& list = in_sleeve ? p.layer_triangles : p.part_triangles;
+    bool listed = false;
+    for (const auto& part : list)
+      listed |= std::count(part.begin(), part.end(), t) > 0;
+    EXPECT_TRUE(listed) << "triangle " << t;
+  }
+  // The surface samples on a sleeve triangle (nearer one than any skin
+  // triangle): none when the skin only is fitted, some when both are.
+  auto onSleeve = [&](const ImplicitFields& f) {
+    int count = 0;
+    for (const BoneSamples& samples : f.samples)
+      for (const auto& x : samples.surface.positions) {
+        double skin = 1e30, layer = 1e30;
+        for (int t = 0; t < rig.mesh.triangleCount(); ++t) {
+          double& nearest = t < sleeve.first_triangle ? skin : layer;
+          nearest = std::min(
+              nearest,
+              pointTriangleDistance(x, vertex(rig, rig.mesh.triangles(t, 0)),
+                                    vertex(rig, rig.mesh.triangles(t, 1)),
+                                    vertex(rig, rig.mesh.triangles(t, 2))));
+        }
+        count += layer < skin;
+      }
+    return count;
+  };
+  EXPECT_EQ(onSleeve(fields), 0);
+  ImplicitFieldsOptions together;
+  together.sampling.skin_only = false;
+  const ImplicitFields both = buildImplicitFields(rig, together);
+  EXPECT_GT(onSleeve(both), 10);
+  for (const uint8_t layer : both.partition.vertex_layer) EXPECT_EQ(layer, 0);
+  size_t layer_triangles = 0;
+  for (const auto& part : both.partition.layer_triangles)
+    layer_triangles += part.size();
+  EXPECT_EQ(layer_triangles, 0u);
+
+  for (const std::string& name : builtinRigNames()) {
+    if (name == "sleeved-arm") continue;
+    const BonePartition& other = implicitFieldsOf(name).partition;
+    EXPECT_EQ(std::count(other.vertex_layer.begin(), other.vertex_layer.end(),
+                         uint8_t{1}),
+              0)
+        << name;
+  }
+}
+
+TEST(ImplicitFields, AssetsHaveNoLayers) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("layers of the assets");
+  for (const std::string& name : test::assetNames()) {
+    const BonePartition& p = implicitFieldsOf(name).partition;
+    EXPECT_EQ(
+        std::count(p.vertex_layer.begin(), p.vertex_layer.end(), uint8_t{1}), 0)
+        << name;
+  }
+}
+
 TEST(ImplicitFields, PartitionOnAssets) {
   FOR_ASSETS(checkPartition, "the partition checks on assets");
 }

@@ -824,6 +824,81 @@ TEST(SurfaceTracking, CoarseArmAgainstDqs) {
   }
 }
 
+TEST(SurfaceTracking, SleevedArmFollowsTheSkinAgainstDqs) {
+  // Two layers sharing bones (isk::makeSleevedArmRig: a sleeve around the
+  // arm past the elbow). Fitted with the skin, the sleeve bends the field
+  // between the two surfaces and the skin pokes through the sleeve as the
+  // elbow bends; fitted to the skin only (the default, bone_partition.hpp's
+  // layers), the sleeve follows the skin's field: no more new pairs than
+  // DQS at any bend, and fewer than the fit of both layers.
+  const Rig rig = makeSleevedArmRig();
+  const int elbow = rig.skeleton.find("elbow");
+  ASSERT_GE(elbow, 0);
+  ImplicitSkinnerOptions both_layers;
+  both_layers.fields.sampling.skin_only = false;
+  CpuImplicitSkinner skin_only(rig);
+  CpuImplicitSkinner fitted_together(rig, both_layers);
+  int sum_skin_only = 0, sum_together = 0;
+  for (const double degrees : {60.0, 90.0, 120.0, 150.0}) {
+    SCOPED_TRACE(std::to_string(degrees) + " degrees");
+    const TransformList pose = bendAt(rig, elbow, degrees);
+    skin_only.run(pose);
+    fitted_together.run(pose);
+    const FrameMeasures dqs = measureFrame(
+        rig.mesh, geometric(rig, SkinningMethod::kDualQuaternion, pose));
+    const FrameMeasures s = measureFrame(rig.mesh, skin_only.positions());
+    const FrameMeasures t = measureFrame(rig.mesh, fitted_together.positions());
+    std::printf(
+        "[ sleeved arm, %d vertices, %.0f deg ] new pairs DQS %d, skin only "
+        "%d, both layers fitted %d; volume %.4f, %.4f, %.4f; strain max "
+        "%.3f, %.3f, %.3f\n",
+        rig.mesh.vertexCount(), degrees, dqs.new_pairs, s.new_pairs,
+        t.new_pairs, dqs.volume, s.volume, t.volume, dqs.strain_max,
+        s.strain_max, t.strain_max);
+    EXPECT_LE(s.new_pairs, dqs.new_pairs);
+    EXPECT_LE(s.strain_max, dqs.strain_max + 0.1f);
+    sum_skin_only += s.new_pairs;
+    sum_together += t.new_pairs;
+  }
+  EXPECT_LT(sum_skin_only, sum_together);
+}
+
+TEST(SurfaceTracking, LegBentTo150DegreesAgainstDqs) {
+  // A knee bent to 150 degrees (isk::makeLegRig): the calf presses on the
+  // thigh. Implicit skinning turns most of DQS's interpenetration into
+  // contact; the volume it keeps there is printed (not asserted: below
+  // DQS's, a target not met yet).
+  const Rig rig = makeLegRig();
+  const int knee = rig.skeleton.find("knee");
+  ASSERT_GE(knee, 0);
+  CpuImplicitSkinner skinner(rig);
+  for (const double degrees : {120.0, 150.0}) {
+    SCOPED_TRACE(std::to_string(degrees) + " degrees");
+    const TransformList pose = bendAt(rig, knee, degrees);
+    skinner.run(pose);
+    const Matrix3Xf dqs_frame =
+        geometric(rig, SkinningMethod::kDualQuaternion, pose);
+    const FrameMeasures dqs = measureFrame(rig.mesh, dqs_frame);
+    const FrameMeasures imp = measureFrame(rig.mesh, skinner.positions());
+    const double rest_covered =
+        coveredVolume(rig.mesh.positions, rig.mesh.triangles);
+    const double dqs_covered =
+        coveredVolume(dqs_frame, rig.mesh.triangles) / rest_covered;
+    const double imp_covered =
+        coveredVolume(skinner.positions(), rig.mesh.triangles) / rest_covered;
+    std::printf(
+        "[ leg, %d vertices, %.0f deg ] new pairs DQS %d, implicit %d; volume "
+        "%.4f, %.4f; covered volume %.4f, %.4f; strain max %.3f, %.3f\n",
+        rig.mesh.vertexCount(), degrees, dqs.new_pairs, imp.new_pairs,
+        dqs.volume, imp.volume, dqs_covered, imp_covered, dqs.strain_max,
+        imp.strain_max);
+    EXPECT_GT(dqs.new_pairs, 0);
+    EXPECT_LE(imp.new_pairs, dqs.new_pairs / 10);
+    EXPECT_LE(imp.strain_max, dqs.strain_max + 0.1f);
+    EXPECT_TRUE(skinner.positions().allFinite());
+  }
+}
+
 TEST(SurfaceTracking, BlendPartnersAreOtherPartsFromTheBlendContactAngle) {
   // The blend shapes its joint's fold below blend_contact_degrees (no
   // contact between its two fields: 45 by default, 90 here too); from it on
@@ -987,7 +1062,8 @@ void checkHomeSurface(const Rig& rig, const ImplicitFields& fields) {
     ASSERT_LT(home, mesh.field_count);
     if (surface[home] < 0) surface[home] = mesh.home_surface[v];
     ASSERT_EQ(mesh.home_surface[v], surface[home]) << "vertex " << v;
-    if (!(mesh.iso_values[v] > 0)) continue;
+    // Layers (clothes, bone_partition.hpp) are not their part's surface.
+    if (!(mesh.iso_values[v] > 0) || fields.partition.vertex_layer[v]) continue;
     ++count[home];
     below[home] += mesh.iso_values[v] < surface[home];
     above[home] += mesh.iso_values[v] > surface[home];

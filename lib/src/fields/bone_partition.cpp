@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "isk/core/error.hpp"
+#include "isk/core/one_ring.hpp"
 
 namespace isk {
 
@@ -38,6 +39,116 @@ double meanDistance(const BoneSegment& s, const Mesh& mesh,
   for (int v : vertices)
     sum += s.distance(mesh.positions.row(v).transpose().cast<double>());
   return vertices.empty() ? 0 : sum / vertices.size();
+}
+
+// Connected components of the mesh welded by position: #V component ids.
+std::vector<int> weldedComponents(const Mesh& mesh) {
+  const int vertex_count = mesh.vertexCount();
+  std::vector<int> parent = weldedRepresentatives(mesh.positions);
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (int t = 0; t < mesh.triangleCount(); ++t)
+    for (int k = 1; k < 3; ++k) {
+      const int a = find(mesh.triangles(t, 0)), b = find(mesh.triangles(t, k));
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  std::vector<int> component(vertex_count);
+  for (int v = 0; v < vertex_count; ++v) component[v] = find(v);
+  return component;
+}
+
+// One component's vertices in a part, and its span around the bone.
+struct PartComponent {
+  int id = -1;
+  std::vector<int> vertices;
+  double along_min = 0, along_max = 0, distance_max = 0, distance_mean = 0;
+  int sectors = 0;  // of 8 around the bone, those holding a vertex
+};
+
+// Whether 90% of c's vertices lie in s's envelope (see the header).
+bool inEnvelope(const PartComponent& c, const PartComponent& s,
+                const BoneSegment& segment, const Mesh& mesh) {
+  const double grow = 0.1 * (s.along_max - s.along_min);
+  int inside = 0;
+  for (int v : c.vertices) {
+    const Eigen::Vector3d p = mesh.positions.row(v).transpose().cast<double>();
+    const double a = segment.along(p);
+    inside += a >= s.along_min - grow && a <= s.along_max + grow &&
+              segment.distance(p) <= 1.25 * s.distance_max;
+  }
+  return inside >= 0.9 * static_cast<double>(c.vertices.size());
+}
+
+// Moves the layers' triangles of every part to layer_triangles and flags
+// their vertices (see the header).
+void findLayers(const Mesh& mesh, BonePartition& partition) {
+  const int joint_count = static_cast<int>(partition.part_vertices.size());
+  partition.layer_triangles.assign(joint_count, {});
+  partition.vertex_layer.assign(mesh.vertexCount(), 0);
+  std::vector<int> component;
+  for (int j = 0; j < joint_count; ++j) {
+    const BoneSegment& segment = partition.segments[j];
+    if (segment.degenerate || partition.part_vertices[j].empty()) continue;
+    if (component.empty()) component = weldedComponents(mesh);
+    std::vector<PartComponent> parts;
+    for (int v : partition.part_vertices[j]) {
+      auto it = std::find_if(parts.begin(), parts.end(), [&](const auto& c) {
+        return c.id == component[v];
+      });
+      if (it == parts.end()) {
+        parts.push_back({});
+        it = parts.end() - 1;
+        it->id = component[v];
+      }
+      it->vertices.push_back(v);
+    }
+    if (parts.size() < 2) continue;
+    const Eigen::Vector3d axis = segment.direction();
+    const Eigen::Vector3d u = axis.unitOrthogonal(), w = axis.cross(u);
+    for (PartComponent& c : parts) {
+      c.along_min = std::numeric_limits<double>::infinity();
+      c.along_max = -c.along_min;
+      unsigned sectors = 0;
+      for (int v : c.vertices) {
+        const Eigen::Vector3d p =
+            mesh.positions.row(v).transpose().cast<double>();
+        const double a = segment.along(p), d = segment.distance(p);
+        c.along_min = std::min(c.along_min, a);
+        c.along_max = std::max(c.along_max, a);
+        c.distance_max = std::max(c.distance_max, d);
+        c.distance_mean += d / c.vertices.size();
+        const Eigen::Vector3d r = p - segment.start;
+        const double angle = std::atan2(r.dot(w), r.dot(u));  // [-pi, pi]
+        sectors |= 1u << std::clamp(
+                       static_cast<int>((angle + M_PI) / (2 * M_PI) * 8), 0, 7);
+      }
+      for (; sectors; sectors &= sectors - 1) ++c.sectors;
+    }
+    // A layer wraps the bone as the skin under it does, and lies in the
+    // skin's envelope, farther out.
+    auto wraps = [](const PartComponent& c) { return c.sectors >= 7; };
+    std::vector<uint8_t> layer(parts.size(), 0);
+    for (size_t c = 0; c < parts.size(); ++c)
+      for (size_t s = 0; s < parts.size() && !layer[c]; ++s)
+        layer[c] = s != c && wraps(parts[c]) && wraps(parts[s]) &&
+                   parts[s].distance_mean < parts[c].distance_mean &&
+                   inEnvelope(parts[c], parts[s], segment, mesh);
+    if (std::all_of(layer.begin(), layer.end(), [](uint8_t l) { return l; }))
+      continue;  // no skin to follow: fit them all
+    std::vector<int> skin;
+    for (int t : partition.part_triangles[j]) {
+      bool in_layer = false;
+      for (size_t c = 0; c < parts.size(); ++c)
+        in_layer |= layer[c] && parts[c].id == component[mesh.triangles(t, 0)];
+      (in_layer ? partition.layer_triangles[j] : skin).push_back(t);
+    }
+    partition.part_triangles[j] = std::move(skin);
+    for (size_t c = 0; c < parts.size(); ++c)
+      if (layer[c])
+        for (int v : parts[c].vertices) partition.vertex_layer[v] = 1;
+  }
 }
 
 }  // namespace
@@ -157,6 +268,8 @@ BonePartition partitionMesh(const Rig& rig) {
     s.close_end = !s.degenerate && s.end_joint >= 0 &&
                   !partition.part_vertices[s.end_joint].empty();
   }
+
+  findLayers(mesh, partition);
 
   for (int j = 0; j < joint_count; ++j) {
     const Joint& joint = skeleton.joints[j];

@@ -123,7 +123,8 @@ BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
     auto nearest = [&](const Eigen::Vector3d& joint_position) {
       double best = std::numeric_limits<double>::infinity();
       for (int v : partition.part_vertices[joint])
-        best = std::min(best, (position(mesh, v) - joint_position).norm());
+        if (partition.vertex_layer.empty() || !partition.vertex_layer[v])
+          best = std::min(best, (position(mesh, v) - joint_position).norm());
       return best;
     };
     if (segment.close_start) {

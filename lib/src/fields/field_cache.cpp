@@ -136,7 +136,7 @@ using detail::CacheReader;
 using detail::CacheWriter;
 
 // Bumped whenever sampling, fitting or baking changes their results.
-constexpr uint32_t kFieldBuildVersion = 2;
+constexpr uint32_t kFieldBuildVersion = 3;
 constexpr detail::CacheFileKind kFieldCacheFile = {
     {'I', 'S', 'K', 'F', 'I', 'E', 'L', 'D'},
     1,  // format version: bumping it orphans every file written
@@ -201,10 +201,12 @@ uint64_t skeletonHash(const Skeleton& s) {
 uint64_t parameterHash(const ImplicitFieldsOptions& o) {
   char text[256];
   std::snprintf(text, sizeof(text),
-                "build=%u samples=%d h=%.17g closure=%d seed=%u grid=%d",
+                "build=%u samples=%d h=%.17g closure=%d seed=%u grid=%d "
+                "skin_only=%d",
                 kFieldBuildVersion, o.sampling.target_samples,
                 o.sampling.culling_h, o.sampling.closure_points ? 1 : 0,
-                o.sampling.seed, o.grid_resolution);
+                o.sampling.seed, o.grid_resolution,
+                o.sampling.skin_only ? 1 : 0);
   uint64_t h = detail::fnv1a(text, std::strlen(text));
   for (const auto& [name, samples] : o.joint_samples) {
     const uint64_t length = name.size();

@@ -40,6 +40,7 @@ HermiteSamples vertexSamples(const Mesh& mesh, const BonePartition& partition,
   // summed normal.
   std::map<std::array<float, 3>, Eigen::Vector3d> by_position;
   for (int v : partition.part_vertices[joint]) {
+    if (!partition.vertex_layer.empty() && partition.vertex_layer[v]) continue;
     Eigen::Vector3d n = normals[v];
     if (!(n.norm() > 0)) n = mesh.normals.row(v).transpose().cast<double>();
     if (!(n.norm() > 0) || !n.allFinite()) continue;
@@ -111,7 +112,18 @@ void partitionStage(const BuildInputs& in, ImplicitFields& out) {
   const auto start = std::chrono::steady_clock::now();
   in.report("partition", 0);
   out.partition = partitionMesh(in.rig);
-  out.warnings = out.partition.warnings;
+  BonePartition& partition = out.partition;
+  if (!in.options.sampling.skin_only) {  // layers fitted with their skin
+    for (size_t j = 0; j < partition.layer_triangles.size(); ++j) {
+      std::vector<int>& part = partition.part_triangles[j];
+      part.insert(part.end(), partition.layer_triangles[j].begin(),
+                  partition.layer_triangles[j].end());
+      std::sort(part.begin(), part.end());
+      partition.layer_triangles[j].clear();
+    }
+    std::fill(partition.vertex_layer.begin(), partition.vertex_layer.end(), 0);
+  }
+  out.warnings = partition.warnings;
   in.report("partition", 1);
   out.times.partition_ms = millisecondsSince(start);
 }

@@ -398,12 +398,15 @@ void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
     }
   }
   // Each part's surface value: the median of its tracked vertices' iso
-  // values (a poor fit puts the skin off the field's 0.5).
+  // values (a poor fit puts the skin off the field's 0.5), its layers'
+  // (clothes over it, bone_partition.hpp) left out.
   out.home_surface.assign(vertex_count, 0.f);
   std::vector<std::vector<float>> by_field(std::max(field_count, 0));
+  const std::vector<uint8_t>& layer = fields.partition.vertex_layer;
   for (int v = 0; v < vertex_count; ++v)
     if (out.home_field[v] >= 0 && out.home_field[v] < field_count &&
-        out.iso_values[v] > 0)
+        out.iso_values[v] > 0 &&
+        !(static_cast<int>(layer.size()) == vertex_count && layer[v]))
       by_field[out.home_field[v]].push_back(out.iso_values[v]);
   std::vector<float> median(by_field.size(), 0.f);
   for (size_t i = 0; i < by_field.size(); ++i) {

@@ -18,8 +18,23 @@
 //   segments shorter than 1e-6 of the mesh diagonal): a point bone, b1 = b0,
 //   `degenerate` set; its field is fitted without culling planes or closure
 //   points, and a warning says so.
+//
+// Layers (our addition, docs/algorithm.md): clothes, eyes and other
+// accessory meshes share the bones of the skin under them, and a field
+// fitted to two nested surfaces fits neither. Within a part, the mesh's
+// connected components (welded by position) are compared: a component C is
+// a layer of another, S, when both wrap the bone (their vertices lie in 7
+// or more of 8 sectors around it), C lies farther from the bone on average,
+// and 90% of C's vertices of the part are in S's envelope: within S's span
+// along the bone (grown by 10% of it at each end) and within 1.25 times S's
+// largest distance from the bone (a sleeve around an arm, trousers around a
+// leg; not eyes or teeth, which do not wrap the bone). A layer's triangles
+// are not sampled (layer_triangles instead of part_triangles) and its
+// vertices are flagged: they keep their rest iso value in the skin's field
+// and follow it as an offset surface.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -60,6 +75,11 @@ struct BonePartition {
   // first vertex's part), and the bone segment. Empty parts: no field.
   std::vector<std::vector<int>> part_vertices;
   std::vector<std::vector<int>> part_triangles;
+  // Per joint: the part's triangles in layers (see above), not sampled;
+  // part_triangles holds the others.
+  std::vector<std::vector<int>> layer_triangles;
+  // #V: 1 where the vertex is in a layer of its part (see above).
+  std::vector<uint8_t> vertex_layer;
   std::vector<BoneSegment> segments;
   // Joints with a part, in joint order: one field each.
   std::vector<int> field_joints;

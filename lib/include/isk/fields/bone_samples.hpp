@@ -35,6 +35,10 @@ struct BoneSamplingOptions {
   double culling_h = 0.05;     // eq. (2), a fraction of the bone length
   bool closure_points = true;  // add closure points at touching ends
   unsigned seed = 0x15c0ffee;  // mixed with the joint index
+  // Sample the skin only: the layers of a part (clothes around the skin,
+  // isk/fields/bone_partition.hpp) are left out of its fit and follow the
+  // skin's field. false: they are fitted with it.
+  bool skin_only = true;
 };
 
 // The Hermite samples (model space, bind pose, unit outward normals) of
