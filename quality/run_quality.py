@@ -41,6 +41,8 @@ DEFAULT_PICTURES = os.path.join("build", "samples", "frame-pictures",
 ASSET_EXTENSIONS = (".glb", ".gltf", ".fbx", ".dae", ".x")
 FALLBACK_BUILTINS = ("builtin:cylinder", "builtin:finger", "builtin:arm")
 BENDS = (60, 90, 120)
+# Deeper bends of the built-in rigs made for them (the leg at 150).
+EXTRA_BENDS = {"builtin:leg": (150,)}
 PICTURE_BEND_BUILTIN = 120
 DEFAULT_FRAMES = 12
 MANIFEST = ".written-by-run_quality.json"
@@ -156,7 +158,7 @@ def make_cases(assets, builtins, skip_bends_on_assets=False, only=None):
             cases += [make_case(spec, f"bend:{d}", False) for d in BENDS]
     for spec in builtins:
         cases += [make_case(spec, f"bend:{d}", d == PICTURE_BEND_BUILTIN)
-                  for d in BENDS]
+                  for d in BENDS + EXTRA_BENDS.get(spec, ())]
     if only:
         needle = only.lower()
         cases = [c for c in cases
@@ -713,7 +715,13 @@ def header_section(meta, cases):
                     "assets")
                  + " and on the built-in rigs ("
                  + ", ".join(f"`{b}`" for b in meta.get("builtins", []))
-                 + ")."
+                 + ")"
+                 + "".join(f"; `{b}` also at "
+                           + ", ".join(f"{d}" for d in EXTRA_BENDS[b])
+                           + " degrees"
+                           for b in meta.get("builtins", [])
+                           if b in EXTRA_BENDS)
+                 + "."
                  + (f" Only the cases matching `{meta['only']}`."
                     if meta.get("only") else ""))
     lines.append("")
