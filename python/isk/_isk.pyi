@@ -96,6 +96,7 @@ class ImplicitSkinner:
         smoothing_steps: Optional[int] = None,
         relaxation: Optional[bool] = None,
         base_skinning: Method = "dqs",
+        layers: bool = True,
         cache_dir: Optional[str] = None,
         progress: Optional[Callable[[str, float], object]] = None,
     ) -> None: ...

@@ -123,7 +123,7 @@ class PyImplicitSkinner {
                     std::optional<float> contact_angle,
                     std::optional<int> smoothing_steps,
                     std::optional<bool> relaxation,
-                    const std::string& base_skinning,
+                    const std::string& base_skinning, bool layers,
                     std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
@@ -154,6 +154,7 @@ class PyImplicitSkinner {
     if (smoothing_steps) tracking.smoothing_steps = *smoothing_steps;
     if (relaxation) tracking.relaxation = *relaxation;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
+    options.fields.sampling.skin_only = layers;
     if (cache_dir) {
       options.fields.cache = true;
       options.fields.cache_folder = *cache_dir;
@@ -334,7 +335,7 @@ void registerSkinners(py::module_& m) {
                     std::optional<double>, std::optional<double>,
                     std::optional<int>, std::optional<float>,
                     std::optional<float>, std::optional<int>,
-                    std::optional<bool>, const std::string&,
+                    std::optional<bool>, const std::string&, bool,
                     std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
@@ -344,7 +345,8 @@ void registerSkinners(py::module_& m) {
            py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),
            py::arg("smoothing_steps") = py::none(),
            py::arg("relaxation") = py::none(), py::arg("base_skinning") = "dqs",
-           py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
+           py::arg("layers") = true, py::arg("cache_dir") = py::none(),
+           py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))
       .def("positions", &PyImplicitSkinner::positions)
       .def("normals", &PyImplicitSkinner::normals)

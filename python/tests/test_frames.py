@@ -96,6 +96,19 @@ def test_operator_controllers_shape_the_frames():
                             blend_theta=-0.1)
 
 
+def test_layers_option_reaches_the_fit():
+    # The sleeved arm's sleeve is a layer: fitted with the skin
+    # (layers=False) the frames differ; the plain arm has none: the same
+    # frames either way.
+    for name, differ in (("sleeved-arm", True), ("arm", False)):
+        rig = isk.builtin_rig(name)
+        pose = rig.bend_pose(90)
+        a = isk.ImplicitSkinner(rig, device="reference").deform(pose)[0]
+        b = isk.ImplicitSkinner(rig, device="reference",
+                                layers=False).deform(pose)[0]
+        assert np.array_equal(a, b) != differ, name
+
+
 @pytest.mark.parametrize("name", BUILTIN_RIGS)
 def test_rig_from_arrays_skins_as_the_original(name):
     rig = isk.builtin_rig(name)
