@@ -114,13 +114,14 @@ double msSince(std::chrono::steady_clock::time_point start) {
 
 struct StageSums {
   double upload = 0, skinning = 0, projection = 0, relaxation = 0,
-         smoothing = 0, strain_limit = 0, normals = 0, readback = 0;
+         smoothing = 0, volume = 0, strain_limit = 0, normals = 0, readback = 0;
   void add(const ImplicitStageTimes& t) {
     upload += t.upload_ms;
     skinning += t.skinning_ms;
     projection += t.tracking.projection_ms;
     relaxation += t.tracking.relaxation_ms;
     smoothing += t.tracking.smoothing_ms;
+    volume += t.tracking.volume_ms;
     strain_limit += t.tracking.strain_limit_ms;
     normals += t.tracking.normals_ms;
     readback += t.readback_ms;
@@ -152,6 +153,7 @@ void setCounters(benchmark::State& state, const Rig& rig, int64_t frames,
   state.counters["projection_ms"] = t.projection / n;
   state.counters["relaxation_ms"] = t.relaxation / n;
   state.counters["smoothing_ms"] = t.smoothing / n;
+  state.counters["volume_ms"] = t.volume / n;
   state.counters["strain_limit_ms"] = t.strain_limit / n;
   state.counters["normals_ms"] = t.normals / n;
   state.counters["readback_ms"] = t.readback / n;

@@ -40,6 +40,10 @@
 #define ISK_CONTACT_HOME_FIELD 1
 #define ISK_CONTACT_NEIGHBOURHOODS 2
 #define ISK_CONTACT_VALUE_BOUNDS 4
+
+// --- Volume restoration (tracking/restore_volume.cl) ----------------------
+// The most triangles or vertices of one group a work-item sums.
+#define ISK_VOLUME_CHUNK 256
 // Lane tests on a CPU device: fields tested eight at a time, each chunk
 // ISK_LANE_ROWS rows of ISK_LANE_WIDTH floats.
 #define ISK_LANE_WIDTH 8

@@ -186,6 +186,29 @@ TrackingMesh concatenateTrackingMeshes(
       // Copy by copy, each in its own march order: by home field (copy
       // i's after copy i - 1's), then along the Morton curve.
       shift(m.march_order, v0, out.march_order);
+      // Volume restoration: each copy's groups, after the others'.
+      TrackingMesh::VolumeGroups& groups = out.volume_groups;
+      const int group0 = groups.groupCount();
+      const int triangle0 =
+          groups.triangle_offsets.empty() ? 0 : groups.triangle_offsets.back();
+      if (groups.triangle_offsets.empty()) groups.triangle_offsets.push_back(0);
+      shift(m.volume_groups.corners, v0, groups.corners);
+      for (size_t g = 1; g < m.volume_groups.triangle_offsets.size(); ++g)
+        groups.triangle_offsets.push_back(m.volume_groups.triangle_offsets[g] +
+                                          triangle0);
+      append(m.volume_groups.rest_volume, groups.rest_volume);
+      if (static_cast<int>(m.volume_groups.vertex_group.size()) == v &&
+          static_cast<int>(m.volume_groups.vertex_area.size()) == v &&
+          static_cast<int>(m.volume_groups.normal_sign.size()) == v) {
+        for (const int g : m.volume_groups.vertex_group)
+          groups.vertex_group.push_back(g >= 0 ? g + group0 : -1);
+        append(m.volume_groups.vertex_area, groups.vertex_area);
+        append(m.volume_groups.normal_sign, groups.normal_sign);
+      } else {  // no groups in this copy
+        groups.vertex_group.insert(groups.vertex_group.end(), v, -1);
+        groups.vertex_area.insert(groups.vertex_area.end(), v, 0.f);
+        groups.normal_sign.insert(groups.normal_sign.end(), v, 1.f);
+      }
       v0 += v;
       field0 += m.field_count;
       joint0 += c.joints_per_copy;

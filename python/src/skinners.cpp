@@ -90,6 +90,7 @@ py::dict implicitTimes(const ImplicitStageTimes& t) {
   out["projection"] = t.tracking.projection_ms;
   out["relaxation"] = t.tracking.relaxation_ms;
   out["smoothing"] = t.tracking.smoothing_ms;
+  out["volume"] = t.tracking.volume_ms;
   out["strain_limit"] = t.tracking.strain_limit_ms;
   out["normals"] = t.tracking.normals_ms;
   out["readback"] = t.readback_ms;
@@ -115,16 +116,14 @@ Matrix3Xf readLastFrame(std::mutex& mutex, Device* device, Reference* reference,
 
 class PyImplicitSkinner {
  public:
-  PyImplicitSkinner(RigPtr rig, const std::string& device,
-                    const std::string& op, py::object joint_operators,
-                    std::optional<double> bulge_strength,
-                    std::optional<double> blend_theta,
-                    std::optional<int> rounds, std::optional<float> sigma,
-                    std::optional<float> contact_angle,
-                    std::optional<int> smoothing_steps,
-                    std::optional<bool> relaxation,
-                    const std::string& base_skinning, bool layers,
-                    std::optional<std::string> cache_dir, py::object progress)
+  PyImplicitSkinner(
+      RigPtr rig, const std::string& device, const std::string& op,
+      py::object joint_operators, std::optional<double> bulge_strength,
+      std::optional<double> blend_theta, std::optional<int> rounds,
+      std::optional<float> sigma, std::optional<float> contact_angle,
+      std::optional<int> smoothing_steps, std::optional<bool> relaxation,
+      std::optional<float> volume_restore, const std::string& base_skinning,
+      bool layers, std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
@@ -153,6 +152,7 @@ class PyImplicitSkinner {
     if (contact_angle) tracking.contact_angle_degrees = *contact_angle;
     if (smoothing_steps) tracking.smoothing_steps = *smoothing_steps;
     if (relaxation) tracking.relaxation = *relaxation;
+    if (volume_restore) tracking.volume_restore = *volume_restore;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
     if (cache_dir) {
@@ -331,12 +331,12 @@ void registerSkinners(py::module_& m) {
                                 "Implicit skinning of one rig "
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
-      .def(py::init<RigPtr, const std::string&, const std::string&, py::object,
-                    std::optional<double>, std::optional<double>,
-                    std::optional<int>, std::optional<float>,
-                    std::optional<float>, std::optional<int>,
-                    std::optional<bool>, const std::string&, bool,
-                    std::optional<std::string>, py::object>(),
+      .def(py::init<
+               RigPtr, const std::string&, const std::string&, py::object,
+               std::optional<double>, std::optional<double>, std::optional<int>,
+               std::optional<float>, std::optional<float>, std::optional<int>,
+               std::optional<bool>, std::optional<float>, const std::string&,
+               bool, std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
@@ -344,9 +344,10 @@ void registerSkinners(py::module_& m) {
            py::arg("blend_theta") = py::none(), py::arg("rounds") = py::none(),
            py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),
            py::arg("smoothing_steps") = py::none(),
-           py::arg("relaxation") = py::none(), py::arg("base_skinning") = "dqs",
-           py::arg("layers") = true, py::arg("cache_dir") = py::none(),
-           py::arg("progress") = py::none())
+           py::arg("relaxation") = py::none(),
+           py::arg("volume_restore") = py::none(),
+           py::arg("base_skinning") = "dqs", py::arg("layers") = true,
+           py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))
       .def("positions", &PyImplicitSkinner::positions)
       .def("normals", &PyImplicitSkinner::normals)

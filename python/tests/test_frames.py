@@ -96,6 +96,19 @@ def test_operator_controllers_shape_the_frames():
                             blend_theta=-0.1)
 
 
+def test_volume_restore_option_reaches_the_tracking():
+    # The arm bent at 90 degrees: restoring gives back volume, 0 turns it
+    # off (other frames), and a value out of [0, 1] is a named error.
+    rig = isk.builtin_rig("arm")
+    pose = rig.bend_pose(90)
+    on = isk.ImplicitSkinner(rig, device="reference").deform(pose)[0]
+    off = isk.ImplicitSkinner(rig, device="reference",
+                              volume_restore=0.0).deform(pose)[0]
+    assert not np.array_equal(on, off)
+    with pytest.raises(isk.InvalidArgumentError, match="volume_restore"):
+        isk.ImplicitSkinner(rig, device="reference", volume_restore=1.5)
+
+
 def test_layers_option_reaches_the_fit():
     # The sleeved arm's sleeve is a layer: fitted with the skin
     # (layers=False) the frames differ; the plain arm has none: the same

@@ -166,6 +166,12 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "fields of a blend meet in contact")
           ->check(CLI::Range(0.0, 180.0))
           ->capture_default_str(),
+      app.add_option("--volume-restore", tracking.volume_restore,
+                     "implicit: the largest fraction of a vertex's inward "
+                     "move from skinning given back where a closed part "
+                     "lost volume, [0, 1] (0: off)")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")

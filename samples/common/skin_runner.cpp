@@ -367,6 +367,7 @@ void FrameSkinner::skinImplicit(const TransformList& skinning,
              {"projection", t->tracking.projection_ms},
              {"relaxation", t->tracking.relaxation_ms},
              {"smoothing", t->tracking.smoothing_ms},
+             {"volume", t->tracking.volume_ms},
              {"strain_limit", t->tracking.strain_limit_ms},
              {"normals", t->tracking.normals_ms},
              {"readback", t->readback_ms}};

@@ -274,7 +274,7 @@ TEST(IskSkinTest, ImplicitMethodReportsStagesSelfIntersectionsAndContacts) {
   expectReportKeys(report);
   EXPECT_EQ(report["method"], "implicit");
   for (const char* key : {"skinning", "projection", "relaxation", "smoothing",
-                          "normals", "upload", "readback"}) {
+                          "volume", "normals", "upload", "readback"}) {
     ASSERT_TRUE(report["stage_ms"].contains(key)) << "stage_ms." << key;
     EXPECT_GE(report["stage_ms"][key].get<double>(), 0) << key;
   }

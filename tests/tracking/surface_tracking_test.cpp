@@ -824,6 +824,139 @@ TEST(SurfaceTracking, CoarseArmAgainstDqs) {
   }
 }
 
+// Volume restoration (surface_tracking.hpp): the groups are the closed
+// components, their rest volumes the mesh's enclosed volume; each frame
+// the restoration gives back volume where the march lost it, never past the
+// rest volume, moving only converged vertices away from contacts, by at
+// most their inward move, and adds no crossing pair.
+void checkVolumeGroups(const Rig& rig, const ImplicitFields& fields) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
+  const TrackingMesh::VolumeGroups& groups = mesh.volume_groups;
+  ASSERT_EQ(static_cast<int>(groups.vertex_group.size()), mesh.vertexCount());
+  ASSERT_EQ(groups.triangle_offsets.size(), groups.rest_volume.size() + 1);
+  double sum = 0;
+  for (int g = 0; g < groups.groupCount(); ++g) {
+    EXPECT_GT(groups.rest_volume[g], 0.0) << "group " << g;
+    sum += groups.rest_volume[g];
+  }
+  for (int v = 0; v < mesh.vertexCount(); ++v) {
+    if (mesh.rings.representative[v] != v)
+      EXPECT_EQ(groups.vertex_group[v], -1) << "seam copy " << v;
+    if (groups.vertex_group[v] >= 0)
+      EXPECT_GT(groups.vertex_area[v], 0.f) << "vertex " << v;
+  }
+  // Every closed component wound outward: their volumes add up to the
+  // enclosed volume of the whole (closed) mesh.
+  if (groups.groupCount() > 0)
+    EXPECT_NEAR(
+        sum, std::abs(enclosedVolume(rig.mesh.positions, rig.mesh.triangles)),
+        1e-3 * sum);
+}
+
+TEST(TrackingMesh, VolumeGroupsOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkVolumeGroups(rig, test::implicitFieldsOf(name));
+    // One closed tube each (the sleeved arm: the arm and its sleeve).
+    EXPECT_EQ(TrackingMesh::build(rig.mesh, test::implicitFieldsOf(name))
+                  .volume_groups.groupCount(),
+              name == "sleeved-arm" ? 2 : 1);
+  }
+}
+
+TEST(TrackingMesh, VolumeGroupsOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("volume groups on assets");
+  for (const std::string& name :
+       {std::string("fox-animations.glb"), std::string("CesiumMan.glb"),
+        std::string("horse-animations.glb")}) {
+    SCOPED_TRACE(name);
+    checkVolumeGroups(test::rigNamed(name), test::implicitFieldsOf(name));
+  }
+}
+
+void checkVolumeRestoration(const Rig& rig,
+                            std::shared_ptr<const ImplicitFields> fields,
+                            const TransformList& pose) {
+  ImplicitSkinnerOptions off;
+  off.tracking.volume_restore = 0.f;
+  CpuImplicitSkinner with(rig, fields);
+  CpuImplicitSkinner without(rig, fields, off);
+  with.run(pose);
+  without.run(pose);
+  const Mesh& mesh = rig.mesh;
+  const double rest = enclosedVolume(mesh.positions, mesh.triangles);
+  const double a = enclosedVolume(with.positions(), mesh.triangles) / rest;
+  const double b = enclosedVolume(without.positions(), mesh.triangles) / rest;
+  const CpuSurfaceTracking& tracking = with.tracking();
+  float largest = 0.f;
+  for (const float lambda : tracking.volumeFractions()) {
+    EXPECT_GE(lambda, 0.f);
+    EXPECT_LE(lambda, 1.f);
+    largest = std::max(largest, lambda);
+  }
+  const std::vector<float>& weights = tracking.restoreWeights();
+  ASSERT_EQ(static_cast<int>(weights.size()), mesh.vertexCount());
+  int weighted = 0;
+  for (int v = 0; v < mesh.vertexCount(); ++v) {
+    if (!(weights[v] > 0.f)) continue;
+    ++weighted;
+    EXPECT_EQ(tracking.states()[v], TrackState::kConverged) << "vertex " << v;
+    EXPECT_EQ(tracking.beta()[2 * v], 0.f) << "vertex " << v;
+  }
+  const int pairs_with =
+      countSelfIntersections(with.positions(), mesh.triangles);
+  const int pairs_without =
+      countSelfIntersections(without.positions(), mesh.triangles);
+  std::printf(
+      "[ volume restoration, %s ] volume / rest %.4f (without %.4f), largest "
+      "fraction %.3f, %d vertices weighted; self-intersecting pairs %d "
+      "(without %d)\n",
+      rig.source.c_str(), a, b, largest, weighted, pairs_with, pairs_without);
+  if (std::abs(rest) < 1e-6 * std::pow(rig.boundingBoxDiagonal(), 3))
+    return;  // a flat mesh: no volume to keep
+  EXPECT_GE(a, b - 1e-4);
+  // Never past the rest volume (linearized: a hair past it).
+  EXPECT_LE(a, std::max(b, 1.0) + 2e-3);
+  EXPECT_LE(pairs_with, pairs_without + pairs_without / 20 + 2);
+}
+
+TEST(SurfaceTracking, VolumeRestorationOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    for (const double degrees : {60.0, 120.0}) {
+      SCOPED_TRACE(std::to_string(degrees) + " degrees");
+      checkVolumeRestoration(rig, sharedFields(name),
+                             test::bendAt(rig, 1, degrees));
+    }
+  }
+  // The union's loss at a bend of the arm's elbow is given back, in part.
+  const Rig& arm = test::rigNamed("arm");
+  const TransformList pose = test::bendAt(arm, arm.skeleton.find("elbow"), 90);
+  ImplicitSkinnerOptions off;
+  off.tracking.volume_restore = 0.f;
+  CpuImplicitSkinner with(arm, sharedFields("arm"));
+  CpuImplicitSkinner without(arm, sharedFields("arm"), off);
+  with.run(pose);
+  without.run(pose);
+  const double rest = enclosedVolume(arm.mesh.positions, arm.mesh.triangles);
+  EXPECT_GT(
+      enclosedVolume(with.positions(), arm.mesh.triangles) / rest,
+      enclosedVolume(without.positions(), arm.mesh.triangles) / rest + 0.002);
+}
+
+TEST(SurfaceTracking, VolumeRestorationOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("volume restoration on assets");
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    checkVolumeRestoration(rig, sharedFields(name), clipPoses(rig, 5)[2]);
+  }
+}
+
 TEST(SurfaceTracking, SleevedArmFollowsTheSkinAgainstDqs) {
   // Two layers sharing bones (isk::makeSleevedArmRig: a sleeve around the
   // arm past the elbow). Fitted with the skin, the sleeve bends the field
@@ -1510,6 +1643,19 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   for (size_t i = 0; i < beta.size(); ++i)
     ASSERT_NEAR(beta[i], cpu.beta()[i], chained ? 1.f : 1e-5f)
         << "beta entry " << i;
+  if (!chained)
+    detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
+                                         cpu.previousGradients());
+  cpu.restoreVolume();
+  cl.restoreVolume();
+  compare("volume restoration");
+  std::vector<float> fractions;
+  cl.readVolumeFractions(fractions);
+  ASSERT_EQ(fractions.size(), cpu.volumeFractions().size());
+  for (size_t g = 0; g < fractions.size(); ++g)
+    EXPECT_NEAR(fractions[g], cpu.volumeFractions()[g],
+                chained ? 1.f : 1e-3f + 1e-2f * cpu.volumeFractions()[g])
+        << "volume group " << g;
   if (!chained)
     detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
                                          cpu.previousGradients());

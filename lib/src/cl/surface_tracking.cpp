@@ -104,6 +104,11 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   triangle_normals_kernel_ =
       cl::Kernel(context_->program("normals"), "triangle_normals");
   normals_kernel_ = cl::Kernel(context_->program("normals"), "vertex_normals");
+  cl::Program restore = context_->program("tracking/restore_volume");
+  volume_chunks_ = cl::Kernel(restore, "track_volume_chunks");
+  restore_weights_ = cl::Kernel(restore, "track_restore_weights");
+  restore_fractions_ = cl::Kernel(restore, "track_restore_fractions");
+  restore_apply_ = cl::Kernel(restore, "track_restore_apply");
 }
 
 void ClSurfaceTracking::uploadLayout(
@@ -132,6 +137,26 @@ void ClSurfaceTracking::uploadLayout(
   fold_corners_ = uploadReadOnly(*context_, layout.fold_corners, &bytes_);
   fold_offsets_ = uploadReadOnly(*context_, layout.fold_offsets, &bytes_);
   fold_triangles_ = uploadReadOnly(*context_, layout.fold_triangles, &bytes_);
+  volume_group_count_ = static_cast<int>(layout.volume_rest.size());
+  volume_triangle_chunks_count_ =
+      static_cast<int>(layout.volume_triangle_chunks.size() / 4);
+  volume_vertex_chunks_count_ =
+      static_cast<int>(layout.volume_vertex_chunks.size() / 4);
+  volume_corners_ = uploadReadOnly(*context_, layout.volume_corners, &bytes_);
+  volume_origins_ = uploadReadOnly(*context_, layout.volume_origins, &bytes_);
+  volume_rest_ = uploadReadOnly(*context_, layout.volume_rest, &bytes_);
+  volume_vertices_ = uploadReadOnly(*context_, layout.volume_vertices, &bytes_);
+  volume_triangle_chunks_ =
+      uploadReadOnly(*context_, layout.volume_triangle_chunks, &bytes_);
+  volume_triangle_chunk_offsets_ =
+      uploadReadOnly(*context_, layout.volume_triangle_chunk_offsets, &bytes_);
+  volume_vertex_chunks_ =
+      uploadReadOnly(*context_, layout.volume_vertex_chunks, &bytes_);
+  volume_vertex_chunk_offsets_ =
+      uploadReadOnly(*context_, layout.volume_vertex_chunk_offsets, &bytes_);
+  volume_groups_ = uploadReadOnly(*context_, layout.volume_groups, &bytes_);
+  volume_areas_ = uploadReadOnly(*context_, layout.volume_areas, &bytes_);
+  volume_signs_ = uploadReadOnly(*context_, layout.volume_signs, &bytes_);
 }
 
 void ClSurfaceTracking::allocateBroadPhase(const TrackingMesh& mesh) {
@@ -195,6 +220,22 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   for (auto& b : strain_moved_) b = rw(n);
   for (auto& b : fold_scratch_) b = rw(n * sizeof(float));
   fold_weights_ = rw(n * sizeof(float));
+  restore_weights_buffer_ = rw(n * sizeof(float));
+  context_->queue().enqueueFillBuffer(restore_weights_buffer_, 0.0f, 0,
+                                      n * sizeof(float));
+  volume_chunk_sums_[0] =
+      rw(std::max<size_t>(volume_triangle_chunks_count_, 1) * sizeof(float));
+  volume_chunk_sums_[1] =
+      rw(std::max<size_t>(volume_vertex_chunks_count_, 1) * sizeof(float));
+  volume_fractions_ =
+      rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  context_->queue().enqueueFillBuffer(
+      volume_fractions_, 0.0f, 0,
+      std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  bytes_ += n * sizeof(float) +
+            (static_cast<size_t>(volume_triangle_chunks_count_) +
+             volume_vertex_chunks_count_ + volume_group_count_ + 3) *
+                sizeof(float);
   // 0 until the first check, and always without the guard (where they
   // still reach the steps, multiplied by 0).
   context_->queue().enqueueFillBuffer(fold_weights_, 0.0f, 0,
@@ -222,6 +263,9 @@ void ClSurfaceTracking::addTime(Stage stage, double ms) {
       break;
     case kSmoothing:
       times_.smoothing_ms += ms;
+      break;
+    case kVolume:
+      times_.volume_ms += ms;
       break;
     case kStrainLimit:
       times_.strain_limit_ms += ms;
@@ -564,6 +608,87 @@ void ClSurfaceTracking::smooth() {
   }
 }
 
+void ClSurfaceTracking::restoreVolume() {
+  checkBegun("restoreVolume");
+  if (!(options_.volume_restore > 0.f) || volume_group_count_ == 0) {
+    // The fractions read back as CpuSurfaceTracking's: 0.
+    try {
+      context_->queue().enqueueFillBuffer(
+          volume_fractions_, 0.0f, 0,
+          std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+    } catch (const cl::Error& e) {
+      throwClError(e, "ClSurfaceTracking::restoreVolume on " +
+                          context_->info().describe());
+    }
+    return;
+  }
+  try {
+    const cl::Buffer& positions = positions_[current_];
+    volume_chunks_.setArg(0,
+                          static_cast<cl_uint>(volume_triangle_chunks_count_));
+    volume_chunks_.setArg(1, volume_triangle_chunks_);
+    volume_chunks_.setArg(2, volume_corners_);
+    volume_chunks_.setArg(3, volume_origins_);
+    volume_chunks_.setArg(4, positions);
+    volume_chunks_.setArg(5, volume_chunk_sums_[0]);
+    launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
+    restore_weights_.setArg(0,
+                            static_cast<cl_uint>(volume_vertex_chunks_count_));
+    restore_weights_.setArg(1, volume_vertex_chunks_);
+    restore_weights_.setArg(2, volume_vertices_);
+    restore_weights_.setArg(3, states_);
+    restore_weights_.setArg(4, beta_[beta_current_]);
+    restore_weights_.setArg(5, positions);
+    restore_weights_.setArg(6, skinned_positions_);
+    restore_weights_.setArg(7, fallback_normals_);
+    restore_weights_.setArg(8, begin_source_);
+    restore_weights_.setArg(9, volume_areas_);
+    restore_weights_.setArg(10, volume_signs_);
+    restore_weights_.setArg(11, restore_weights_buffer_);
+    restore_weights_.setArg(12, volume_chunk_sums_[1]);
+    launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
+    restore_fractions_.setArg(0, static_cast<cl_uint>(volume_group_count_));
+    restore_fractions_.setArg(1, volume_triangle_chunk_offsets_);
+    restore_fractions_.setArg(2, volume_vertex_chunk_offsets_);
+    restore_fractions_.setArg(3, volume_chunk_sums_[0]);
+    restore_fractions_.setArg(4, volume_chunk_sums_[1]);
+    restore_fractions_.setArg(5, volume_rest_);
+    restore_fractions_.setArg(6, options_.volume_restore);
+    restore_fractions_.setArg(7, volume_fractions_);
+    launch(restore_fractions_, kVolume, volume_group_count_);
+    restore_apply_.setArg(0, static_cast<cl_uint>(vertex_count_));
+    restore_apply_.setArg(1, volume_groups_);
+    restore_apply_.setArg(2, restore_weights_buffer_);
+    restore_apply_.setArg(3, volume_fractions_);
+    restore_apply_.setArg(4, fallback_normals_);
+    restore_apply_.setArg(5, begin_source_);
+    restore_apply_.setArg(6, volume_signs_);
+    restore_apply_.setArg(7, positions);
+    launch(restore_apply_, kVolume);
+  } catch (const cl::Error& e) {
+    throwClError(e, "ClSurfaceTracking::restoreVolume on " +
+                        context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::readVolumeFractions(std::vector<float>& out) {
+  checkBegun("readVolumeFractions");
+  out.resize(volume_group_count_);
+  if (volume_group_count_ > 0)
+    readFloats(volume_fractions_, out.data(), out.size() * sizeof(float),
+               "readVolumeFractions");
+}
+
+void ClSurfaceTracking::readRestoreWeights(std::vector<float>& out) {
+  checkBegun("readRestoreWeights");
+  std::vector<float> by_device(vertex_count_);
+  if (vertex_count_ > 0)
+    readFloats(restore_weights_buffer_, by_device.data(),
+               by_device.size() * sizeof(float), "readRestoreWeights");
+  out.assign(vertex_count_, 0.f);
+  for (int k = 0; k < vertex_count_; ++k) out[order_[k]] = by_device[k];
+}
+
 void ClSurfaceTracking::limitStrain() {
   checkBegun("limitStrain");
   if (options_.strain_limit_steps == 0) return;
@@ -691,6 +816,7 @@ void ClSurfaceTracking::run(const TransformList& skinning,
     if (options_.relaxation) relax();
   }
   smooth();
+  restoreVolume();
   limitStrain();
   finish();
   try {

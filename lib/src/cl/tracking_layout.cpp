@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "abi.h"
 #include "tracking/tracking_tuning.hpp"
 
 namespace isk::detail {
@@ -130,6 +131,63 @@ void foldRows(const TrackingMesh& mesh, TrackingDeviceLayout* out) {
     out->fold_triangles[fill[out->fold_corners[i]]++] = static_cast<int>(i / 3);
 }
 
+// Chunks of at most ISK_VOLUME_CHUNK items of each group, whose items
+// are [offsets[g], offsets[g + 1]).
+void volumeChunks(const std::vector<int>& offsets, std::vector<int>* chunks,
+                  std::vector<int>* chunk_offsets) {
+  chunk_offsets->assign(1, 0);
+  for (size_t g = 0; g + 1 < offsets.size(); ++g) {
+    for (int first = offsets[g]; first < offsets[g + 1];
+         first += ISK_VOLUME_CHUNK)
+      chunks->insert(chunks->end(),
+                     {static_cast<int>(g), first,
+                      std::min(first + ISK_VOLUME_CHUNK, offsets[g + 1]), 0});
+    chunk_offsets->push_back(static_cast<int>(chunks->size() / 4));
+  }
+}
+
+void volumeRows(const TrackingMesh& mesh, TrackingDeviceLayout* out) {
+  const TrackingMesh::VolumeGroups& groups = mesh.volume_groups;
+  const int n = static_cast<int>(out->order.size());
+  for (const int v : groups.corners)
+    out->volume_corners.push_back(out->slot_of[v]);
+  for (int g = 0; g < groups.groupCount(); ++g) {
+    out->volume_origins.push_back(
+        out->volume_corners[3 *
+                            static_cast<size_t>(groups.triangle_offsets[g])]);
+    out->volume_rest.push_back(static_cast<float>(groups.rest_volume[g]));
+  }
+  volumeChunks(groups.triangle_offsets, &out->volume_triangle_chunks,
+               &out->volume_triangle_chunk_offsets);
+  out->volume_groups.assign(n, -1);
+  out->volume_areas.assign(n, 0.f);
+  out->volume_signs.assign(n, 1.f);
+  std::vector<int> vertex_offsets(groups.groupCount() + 1, 0);
+  for (int k = 0; k < n; ++k) {
+    const int v = out->order[k];
+    const int g = static_cast<int>(groups.vertex_group.size()) == n &&
+                          static_cast<int>(groups.normal_sign.size()) == n
+                      ? groups.vertex_group[v]
+                      : -1;
+    out->volume_groups[k] = g;
+    out->volume_areas[k] = g < 0 ? 0.f : groups.vertex_area[v];
+    out->volume_signs[k] = g < 0 ? 1.f : groups.normal_sign[v];
+    if (g >= 0) ++vertex_offsets[g + 1];
+  }
+  for (int g = 0; g < groups.groupCount(); ++g)
+    vertex_offsets[g + 1] += vertex_offsets[g];
+  // In the mesh's order, so that the sums do not depend on the march order.
+  out->volume_vertices.resize(vertex_offsets.back());
+  std::vector<int> fill(vertex_offsets.begin(), vertex_offsets.end() - 1);
+  for (int v = 0; v < n; ++v) {
+    const int k = out->slot_of[v];
+    if (out->volume_groups[k] >= 0)
+      out->volume_vertices[fill[out->volume_groups[k]]++] = k;
+  }
+  volumeChunks(vertex_offsets, &out->volume_vertex_chunks,
+               &out->volume_vertex_chunk_offsets);
+}
+
 }  // namespace
 
 TrackingDeviceLayout trackingDeviceLayout(
@@ -143,6 +201,7 @@ TrackingDeviceLayout trackingDeviceLayout(
   out.ring_lengths = std::move(lengths);
   reverseRows(&out);
   foldRows(mesh, &out);
+  volumeRows(mesh, &out);
   return out;
 }
 

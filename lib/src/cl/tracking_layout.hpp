@@ -52,6 +52,20 @@ struct TrackingDeviceLayout {
   std::vector<int> fold_corners;
   std::vector<uint32_t> fold_offsets;
   std::vector<int> fold_triangles;
+  // Volume restoration (TrackingMesh::VolumeGroups) in device indices: the
+  // groups' triangles (3 corners each, group by group), each group's first
+  // corner, its rest volume; its vertices (device indices, group by group);
+  // the sums' chunks (4 ints each: group, first, end, 0; at most
+  // ISK_VOLUME_CHUNK triangles or vertices of one group) and each group's
+  // first chunk (#groups + 1); per device index its group (-1), area and
+  // normal sign.
+  std::vector<int> volume_corners, volume_origins;
+  std::vector<float> volume_rest;
+  std::vector<int> volume_vertices;
+  std::vector<int> volume_triangle_chunks, volume_triangle_chunk_offsets;
+  std::vector<int> volume_vertex_chunks, volume_vertex_chunk_offsets;
+  std::vector<int> volume_groups;
+  std::vector<float> volume_areas, volume_signs;
 };
 
 // The tuning's march_order off keeps the tracked vertices by index instead

@@ -5,12 +5,14 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 
 #include "abi.h"
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/core/surface_orientation.hpp"
 #include "isk/tools/mesh_metrics.hpp"
 #include "tracking/tracking_tuning.hpp"
 #include "usability.hpp"
@@ -112,6 +114,35 @@ Eigen::Vector3f smoothingStep(const Eigen::Vector3f& x,
                               const Eigen::Vector3f& tangential, float b,
                               float c) {
   return x + b * d + (1.f - b) * c * tangential;
+}
+
+// Volume restoration (surface_tracking.hpp): how far vertex x moved inward
+// from its skinned position s along the skinned normal (made unit), times
+// (1 - gamma), for the vertices that converged to their iso value where
+// beta = 0; 0 for the others (contacts, creases, still marching, lost,
+// untracked).
+float volumeRestoreWeight(TrackState state, float beta, float gamma,
+                          const Eigen::Vector3f& x, const Eigen::Vector3f& s,
+                          const Eigen::Vector3f& skinned_normal, float sign) {
+  if (state != TrackState::kConverged || beta > 0.f) return 0.f;
+  const float length = skinned_normal.norm();
+  if (!(length > 0.f) || !std::isfinite(length)) return 0.f;
+  const float inward = -sign * (x - s).dot(skinned_normal) / length;
+  return inward > 0.f ? inward * (1.f - gamma) : 0.f;
+}
+
+// A group's fraction lambda: its missing volume over the weighted sum of
+// its vertices' inward moves (sum w A), in [0, limit].
+float volumeRestoreFraction(double missing, double weighted, float limit) {
+  if (!(weighted > 0.0) || !(missing > 0.0)) return 0.f;
+  return static_cast<float>(std::min(missing / weighted, double{limit}));
+}
+
+// The step: `distance` out along the unit skinned normal (times its sign).
+Eigen::Vector3f volumeRestoreStep(const Eigen::Vector3f& x,
+                                  const Eigen::Vector3f& skinned_normal,
+                                  float sign, float distance) {
+  return x + (sign * distance) * skinned_normal.normalized();
 }
 
 // The strain limit's Jacobi step for one vertex: its offset d from its
@@ -224,6 +255,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(contact_home_reach >= 0 && contact_home_reach <= 1))
     return bad("contact_home_reach " + std::to_string(contact_home_reach) +
                ": expected field units in [0, 1]");
+  if (!(volume_restore >= 0 && volume_restore <= 1))
+    return bad("volume_restore " + std::to_string(volume_restore) +
+               ": expected a fraction in [0, 1]");
   if (!(contact_gap >= 0 && contact_gap < 0.5f))
     return bad("contact_gap " + std::to_string(contact_gap) +
                ": expected field units in [0, 0.5)");
@@ -464,6 +498,122 @@ std::vector<int> marchOrder(const Mesh& mesh, const TrackingMesh& out) {
   return order;
 }
 
+// Six times the volume of the tetrahedron (c0, a, b, c).
+double tripleProduct(const Eigen::Vector3f& c0, const Eigen::Vector3f& a,
+                     const Eigen::Vector3f& b, const Eigen::Vector3f& c) {
+  const Eigen::Vector3d p = (a - c0).cast<double>(),
+                        q = (b - c0).cast<double>(),
+                        r = (c - c0).cast<double>();
+  return p.dot(q.cross(r));
+}
+
+// The volume restoration's groups (TrackingMesh::VolumeGroups): the welded
+// mesh's connected components with at most 1% of their vertices on a border
+// and a rest volume above 1e-6 of their size cubed.
+TrackingMesh::VolumeGroups volumeGroups(const Mesh& mesh, const OneRings& rings,
+                                        const BonePartition& partition) {
+  const int n = mesh.vertexCount();
+  const std::vector<int>& rep = rings.representative;
+  std::vector<int> parent(n);
+  for (int v = 0; v < n; ++v) parent[v] = v;
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  std::vector<std::array<int, 3>> welded;
+  std::vector<int> source;  // the mesh triangle of each welded one
+  const SurfaceOrientation orientation = SurfaceOrientation::of(mesh);
+  for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
+    std::array<int, 3> c = {rep[mesh.triangles(t, 0)],
+                            rep[mesh.triangles(t, 1)],
+                            rep[mesh.triangles(t, 2)]};
+    if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) continue;  // degenerate
+    if (orientation.triangle_sign[t] < 0) std::swap(c[1], c[2]);
+    for (int k = 1; k < 3; ++k) {
+      const int a = find(c[0]), b = find(c[k]);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+    welded.push_back(c);
+  }
+  std::vector<int> vertices(n, 0), border(n, 0), triangles(n, 0);
+  std::vector<Eigen::AlignedBox3f> boxes(n);
+  for (int v = 0; v < n; ++v) {
+    if (rep[v] != v) continue;
+    const int root = find(v);
+    ++vertices[root];
+    border[root] += rings.kinds[v] == RingKind::kBoundary;
+    boxes[root].extend(mesh.positions.row(v).transpose());
+  }
+  for (const auto& c : welded) ++triangles[find(c[0])];
+  // Groups in order of their smallest vertex; rest volumes about each
+  // group's first corner.
+  std::vector<int> group_of_root(n, -1);
+  std::vector<std::vector<std::array<int, 3>>> by_group;
+  TrackingMesh::VolumeGroups out;
+  for (const auto& c : welded) {
+    const int root = find(c[0]);
+    if (triangles[root] < 4 || 100 * border[root] > vertices[root]) continue;
+    if (group_of_root[root] < 0) {
+      group_of_root[root] = static_cast<int>(by_group.size());
+      by_group.emplace_back();
+    }
+    by_group[group_of_root[root]].push_back(c);
+  }
+  auto at = [&](int v) -> Eigen::Vector3f {
+    return mesh.positions.row(v).transpose();
+  };
+  out.triangle_offsets.push_back(0);
+  for (size_t g = 0; g < by_group.size(); ++g) {
+    const auto& list = by_group[g];
+    const Eigen::Vector3f c0 = at(list[0][0]);
+    double volume = 0;
+    for (const auto& c : list)
+      volume += tripleProduct(c0, at(c[0]), at(c[1]), at(c[2]));
+    volume /= 6;
+    const double size = boxes[find(list[0][0])].diagonal().norm();
+    if (!(volume > 1e-6 * size * size * size)) continue;
+    out.rest_volume.push_back(volume);
+    for (const auto& c : list)
+      out.corners.insert(out.corners.end(), c.begin(), c.end());
+    out.triangle_offsets.push_back(static_cast<int>(out.corners.size() / 3));
+  }
+  out.vertex_group.assign(n, -1);
+  out.vertex_area.assign(n, 0.f);
+  out.normal_sign.assign(n, 1.f);
+  std::vector<Eigen::Vector3f> outward(n, Eigen::Vector3f::Zero());
+  for (int g = 0; g < out.groupCount(); ++g)
+    for (int t = out.triangle_offsets[g]; t < out.triangle_offsets[g + 1];
+         ++t) {
+      const int* c = &out.corners[3 * static_cast<size_t>(t)];
+      const Eigen::Vector3f face =
+          (at(c[1]) - at(c[0])).cross(at(c[2]) - at(c[0]));
+      for (int k = 0; k < 3; ++k) {
+        out.vertex_area[c[k]] += face.norm() / 6.f;
+        out.vertex_group[c[k]] = g;
+        outward[c[k]] += face;
+      }
+    }
+  for (int v = 0; v < n; ++v)
+    if (out.vertex_group[v] >= 0 &&
+        outward[v].dot(mesh.normals.row(v).transpose()) < 0.f)
+      out.normal_sign[v] = -1.f;
+  // Parts dressed in layers of clothes are left alone: the layers follow
+  // the field, and moving the skin out alone would push it through them.
+  const std::vector<uint8_t>& layers = partition.vertex_layer;
+  const std::vector<int>& joint = partition.vertex_joint;
+  if (static_cast<int>(layers.size()) == n &&
+      static_cast<int>(joint.size()) == n) {
+    for (int v = 0; v < n; ++v) {
+      const int j = joint[v];
+      const bool dressed =
+          j >= 0 && j < static_cast<int>(partition.layer_triangles.size()) &&
+          !partition.layer_triangles[j].empty();
+      if (dressed || layers[v]) out.vertex_group[v] = -1;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 TrackingMesh TrackingMesh::build(const Mesh& mesh,
@@ -482,6 +632,7 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
   out.partner_pairs = partnerPairs(fields);
   homeFieldsAndMargins(mesh, fields, &out);
   out.march_order = marchOrder(mesh, out);
+  out.volume_groups = volumeGroups(mesh, out.rings, fields.partition);
   return out;
 }
 
@@ -1257,8 +1408,63 @@ void CpuSurfaceTracking::run(const TransformList& skinning,
     if (options_.relaxation) relax();
   }
   smooth();
+  restoreVolume();
   limitStrain();
   finish();
+}
+
+void CpuSurfaceTracking::restoreVolume() {
+  checkBegun("restoreVolume");
+  const TrackingMesh::VolumeGroups& groups = mesh_->volume_groups;
+  const int group_count = groups.groupCount();
+  const int n = mesh_->vertexCount();
+  volume_fractions_.assign(group_count, 0.f);
+  restore_weights_.assign(n, 0.f);
+  if (!(options_.volume_restore > 0.f) || group_count == 0 ||
+      static_cast<int>(groups.vertex_group.size()) != n ||
+      static_cast<int>(groups.vertex_area.size()) != n ||
+      static_cast<int>(groups.normal_sign.size()) != n)
+    return;
+  const auto start = std::chrono::steady_clock::now();
+  // Each group's volume now, about its first corner.
+  std::vector<double> missing(group_count), weighted(group_count, 0.0);
+  for (int g = 0; g < group_count; ++g) {
+    const int first = groups.triangle_offsets[g];
+    const Eigen::Vector3f c0 =
+        positions_.row(groups.corners[3 * static_cast<size_t>(first)])
+            .transpose();
+    double volume = 0;
+    for (int t = first; t < groups.triangle_offsets[g + 1]; ++t) {
+      const int* c = &groups.corners[3 * static_cast<size_t>(t)];
+      volume += tripleProduct(c0, positions_.row(c[0]).transpose(),
+                              positions_.row(c[1]).transpose(),
+                              positions_.row(c[2]).transpose());
+    }
+    missing[g] = groups.rest_volume[g] - volume / 6;
+  }
+  // The inward moves outside contacts and creases, and their weighted sum.
+  for (int v = 0; v < n; ++v) {
+    const int g = groups.vertex_group[v];
+    if (g < 0) continue;
+    restore_weights_[v] = volumeRestoreWeight(
+        states_[v], beta_[2 * v], beta_[2 * v + 1],
+        positions_.row(v).transpose(), skinned_.row(v).transpose(),
+        fallback_normals_.row(v).transpose(), groups.normal_sign[v]);
+    weighted[g] += restore_weights_[v] * groups.vertex_area[v];
+  }
+  for (int g = 0; g < group_count; ++g)
+    volume_fractions_[g] =
+        volumeRestoreFraction(missing[g], weighted[g], options_.volume_restore);
+  for (int v = 0; v < n; ++v) {
+    const int g = groups.vertex_group[v];
+    if (g < 0 || !(restore_weights_[v] > 0.f)) continue;
+    positions_.row(v) =
+        volumeRestoreStep(
+            positions_.row(v).transpose(), fallback_normals_.row(v).transpose(),
+            groups.normal_sign[v], volume_fractions_[g] * restore_weights_[v])
+            .transpose();
+  }
+  times_.volume_ms += millisecondsSince(start);
 }
 
 }  // namespace isk

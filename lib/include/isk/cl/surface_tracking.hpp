@@ -49,6 +49,7 @@ class ClSurfaceTracking {
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
+  void restoreVolume();     // volume restoration (after smooth())
   void limitStrain();       // the strain limit's steps, with the fold guard
   void finish();            // seam copies and normals
 
@@ -67,6 +68,10 @@ class ClSurfaceTracking {
   void readBeta(std::vector<float>& out);  // beta, gamma per vertex
   void readPreviousGradients(Matrix4Xf& out);
   void readRelaxFrames(Matrix4Xf& out);
+  // Volume restoration's last run: lambda per group, and each vertex's
+  // weight (#V, 0 outside the groups) as CpuSurfaceTracking's.
+  void readVolumeFractions(std::vector<float>& out);
+  void readRestoreWeights(std::vector<float>& out);
   // Vertices stopped at a contact in the last frame (a blocking read of the
   // states).
   int contactCount();
@@ -92,7 +97,14 @@ class ClSurfaceTracking {
                 const Matrix4Xf& prev_gradients,
                 const Matrix4Xf* relax_frames = nullptr);
 
-  enum Stage { kProjection, kRelaxation, kSmoothing, kStrainLimit, kNormals };
+  enum Stage {
+    kProjection,
+    kRelaxation,
+    kSmoothing,
+    kVolume,
+    kStrainLimit,
+    kNormals
+  };
   // Over `items` work-items (-1: one per vertex).
   void launch(cl::Kernel& kernel, Stage stage, int items = -1);
   void addTime(Stage stage, double ms);
@@ -140,7 +152,8 @@ class ClSurfaceTracking {
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       limit_strain_, strain_offsets_, strain_positions_, fold_frames_kernel_,
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
-      copy_duplicates_, triangle_normals_kernel_, normals_kernel_;
+      copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
+      volume_chunks_, restore_weights_, restore_fractions_, restore_apply_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, partners_, neighbour_offsets_,
@@ -195,6 +208,15 @@ class ClSurfaceTracking {
   // vertex) a check computes them in.
   cl::Buffer fold_corners_, fold_offsets_, fold_triangles_, fold_frames_,
       triangle_weights_, fold_weights_, fold_scratch_[2];
+  // Volume restoration: the layout's volume rows (TrackingDeviceLayout),
+  // the chunks' sums, the groups' fractions and the vertices' weights.
+  int volume_group_count_ = 0, volume_triangle_chunks_count_ = 0,
+      volume_vertex_chunks_count_ = 0;
+  cl::Buffer volume_corners_, volume_origins_, volume_rest_, volume_vertices_,
+      volume_triangle_chunks_, volume_triangle_chunk_offsets_,
+      volume_vertex_chunks_, volume_vertex_chunk_offsets_, volume_groups_,
+      volume_areas_, volume_signs_, volume_chunk_sums_[2], volume_fractions_,
+      restore_weights_buffer_;
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;

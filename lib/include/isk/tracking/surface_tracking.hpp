@@ -53,6 +53,21 @@
 // its sharp offsets, since it flattens the skin without turning it over;
 // the fold-overs of a poorly fitted coarse mesh are smoothed out.
 //
+// Volume restoration (volume_restore, on by default; our addition, see
+// docs/algorithm.md): after the smoothing, each closed connected component
+// of the welded mesh whose volume fell below its rest volume gets some of
+// it back. The vertices that converged to their iso value inward of their
+// skinned position (along the skinned normal n), away from contacts (beta =
+// 0) and outside parts dressed in clothes' layers, are moved back out along
+// n by a common fraction lambda of their inward move, weighted by
+// (1 - gamma):
+//   x <- x + lambda w n,  w = max(0, -(x - s).n) (1 - gamma),
+//   lambda = clamp((V_rest - V) / sum(w A), 0, volume_restore),
+// A a third of the rest area of the vertex's triangles: the union's
+// notches on the outside of bends go back towards the skinning's surface
+// while the contacts stay. Components with holes (more than 1% of their
+// vertices on a border) and meshes that enclose no volume are left alone.
+//
 // Contact by home field (home_contact, on by default; our addition, see
 // docs/algorithm.md): each vertex has a home field, the field of the
 // bone it was partitioned to. A vertex that geometric skinning pushed into
@@ -144,6 +159,9 @@ struct SurfaceTrackingOptions {
   // and the paper's march send it out through the far side
   // (docs/algorithm.md). 1: no such test.
   float contact_home_reach = 0.1f;
+  // Volume restoration (see above): the largest fraction of a vertex's
+  // inward move from its skinned position given back, in [0, 1] (0: off).
+  float volume_restore = 1.f;
   // Two fields joined by a blend are not other parts for the contact by
   // home field while their joint is turned by less than this from its bind
   // pose (degrees): the blend shapes a fold that turns by less into a
@@ -239,6 +257,29 @@ struct TrackingMesh {
   // projection kernel marches them: by home field, then along a Morton
   // curve of the rest positions (locality of the grid samples).
   std::vector<int> march_order;
+
+  // Volume restoration's groups (see above): the closed connected
+  // components of the welded mesh that enclose a volume.
+  struct VolumeGroups {
+    // 3 per triangle, group by group: the corners' representatives, wound
+    // outward (SurfaceOrientation). A group's volume is taken about its
+    // first triangle's first corner.
+    std::vector<int> corners;
+    std::vector<int> triangle_offsets;  // #groups + 1, triangles
+    std::vector<double> rest_volume;    // #groups, > 0
+    // #V: the vertex's group; -1 for seam copies, layers of clothes
+    // (bone_partition.hpp: they follow the skin) and vertices of no group.
+    std::vector<int> vertex_group;
+    // #V: a third of the rest area of its group's triangles around the
+    // vertex (0 outside any group).
+    std::vector<float> vertex_area;
+    // #V: +1 where the vertex's rest normal points out of its group (the
+    // side its triangles are wound to), -1 where it points in (normals
+    // of a mesh wound inside out, or flipped): n times it is outward.
+    std::vector<float> normal_sign;
+    int groupCount() const { return static_cast<int>(rest_volume.size()); }
+  };
+  VolumeGroups volume_groups;
 
   int vertexCount() const { return static_cast<int>(iso_values.size()); }
   // Vertex v's diagonal (vertex_diagonals[v], else diagonal).
@@ -375,12 +416,13 @@ struct TrackingStageTimes {
   double projection_ms = 0;    // all projection steps
   double relaxation_ms = 0;    // all relaxation steps
   double smoothing_ms = 0;     // beta diffusion and Laplacian steps
+  double volume_ms = 0;        // volume restoration
   double strain_limit_ms = 0;  // the strain limit's steps
   double normals_ms = 0;       // seam copies and normals
   // Sum of the stages.
   double total() const {
-    return projection_ms + relaxation_ms + smoothing_ms + strain_limit_ms +
-           normals_ms;
+    return projection_ms + relaxation_ms + smoothing_ms + volume_ms +
+           strain_limit_ms + normals_ms;
   }
 };
 
@@ -416,11 +458,12 @@ class CpuSurfaceTracking {
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
+  void restoreVolume();     // volume restoration (after smooth())
   void limitStrain();       // the strain limit's steps, with the fold guard
   void finish();            // seam copies and normals
 
-  // The whole frame: begin, rounds x (project, relax), smooth, limitStrain,
-  // finish.
+  // The whole frame: begin, rounds x (project, relax), smooth,
+  // restoreVolume, limitStrain, finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
            const Matrix3Xf& skinned_normals);
 
@@ -441,6 +484,12 @@ class CpuSurfaceTracking {
   // (after limitStrain()): the largest fold weight of the triangles within
   // fold_rings rings of it.
   const std::vector<float>& foldWeights() const { return fold_weights_; }
+  // Volume restoration's last run (after restoreVolume()): lambda per group
+  // (TrackingMesh::volume_groups) and each vertex's weight w (#V).
+  const std::vector<float>& volumeFractions() const {
+    return volume_fractions_;
+  }
+  const std::vector<float>& restoreWeights() const { return restore_weights_; }
   // How many triangles the fold guard's last check found folded over (a
   // weight above 0).
   int foldedTriangleCount() const { return folded_triangles_; }
@@ -485,6 +534,7 @@ class CpuSurfaceTracking {
   void frameFolds();
   void weighFolds(const Matrix3Xf& offsets);
   std::vector<FoldFrame> fold_frames_;
+  std::vector<float> volume_fractions_, restore_weights_;
   std::vector<float> fold_weights_, fold_scratch_;
   int folded_triangles_ = 0;
   TrackingStageTimes times_;

@@ -1,0 +1,123 @@
+// Surface tracking, volume restoration (our addition, docs/algorithm.md):
+// after the smoothing, each closed component of the welded mesh that lost
+// volume moves the vertices tracking moved inward from their skinned
+// position back out along the skinned normal, by one fraction per component.
+// OpenCL C 1.2. CPU reference: CpuSurfaceTracking::restoreVolume and
+// volumeRestoreWeight / volumeRestoreFraction / volumeRestoreStep
+// (lib/src/tracking/surface_tracking.cpp); the groups are
+// TrackingMesh::VolumeGroups.
+//
+// Per-vertex arrays are in the device's vertex order (tracking/project.cl);
+// the skinned positions and normals are in the mesh's order, device index k
+// reading skinned[source[k]]. Sums go by chunks of at most
+// ISK_VOLUME_CHUNK triangles or vertices of one group (int4 per chunk:
+// group, first, end), then by group over its chunks in order
+// (track_restore_fractions): the same sums on every run.
+
+#include "abi.h"
+#include "common.h"
+
+// Six times the volume of each chunk's triangles (corners: 3 device
+// indices per triangle, wound outward) about its group's first corner
+// (group_origins: a device index per group).
+__kernel void track_volume_chunks(const uint chunk_count,
+                                  __global const int4* chunks,
+                                  __global const int* corners,
+                                  __global const int* group_origins,
+                                  __global const float* positions,
+                                  __global float* chunk_volumes) {
+  const uint k = get_global_id(0);
+  if (k >= chunk_count) return;
+  const int4 chunk = chunks[k];
+  const float3 c0 = vload3(group_origins[chunk.x], positions);
+  float sum = 0.0f;
+  for (int t = chunk.y; t < chunk.z; ++t) {
+    const float3 a = vload3(corners[3 * t], positions) - c0;
+    const float3 b = vload3(corners[3 * t + 1], positions) - c0;
+    const float3 c = vload3(corners[3 * t + 2], positions) - c0;
+    sum += dot(a, cross(b, c));
+  }
+  chunk_volumes[k] = sum;
+}
+
+// Each chunk's vertices' weights (volumeRestoreWeight: the inward move from
+// the skinned position along the skinned normal times its sign (outward),
+// times 1 - gamma, of the
+// converged vertices where beta = 0; 0 for the others), written per vertex,
+// and their sum weighted by the vertices' rest areas.
+__kernel void track_restore_weights(
+    const uint chunk_count, __global const int4* chunks,
+    __global const int* entries, __global const uchar* states,
+    __global const float2* beta, __global const float* positions,
+    __global const float* skinned, __global const float* skinned_normals,
+    __global const int* source, __global const float* areas,
+    __global const float* signs, __global float* weights,
+    __global float* chunk_weighted) {
+  const uint k = get_global_id(0);
+  if (k >= chunk_count) return;
+  const int4 chunk = chunks[k];
+  float sum = 0.0f;
+  for (int e = chunk.y; e < chunk.z; ++e) {
+    const int v = entries[e];
+    const uchar state = states[v];
+    const float2 bc = beta[v];
+    float w = 0.0f;
+    if (state == ISK_TRACK_CONVERGED && !(bc.x > 0.0f)) {
+      const float3 n = vload3(source[v], skinned_normals);
+      const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      if (length > 0.0f && isfinite(length)) {
+        const float3 d = vload3(v, positions) - vload3(source[v], skinned);
+        const float inward =
+            -signs[v] * (d.x * n.x + d.y * n.y + d.z * n.z) / length;
+        if (inward > 0.0f) w = inward * (1.0f - bc.y);
+      }
+    }
+    weights[v] = w;
+    sum += w * areas[v];
+  }
+  chunk_weighted[k] = sum;
+}
+
+// Each group's fraction (volumeRestoreFraction): its missing volume (rest
+// less the sum of its triangle chunks over 6) over the sum of its vertex
+// chunks, in [0, limit].
+__kernel void track_restore_fractions(
+    const uint group_count, __global const int* triangle_chunk_offsets,
+    __global const int* vertex_chunk_offsets,
+    __global const float* chunk_volumes, __global const float* chunk_weighted,
+    __global const float* rest_volumes, const float limit,
+    __global float* fractions) {
+  const uint g = get_global_id(0);
+  if (g >= group_count) return;
+  float volume = 0.0f;
+  for (int k = triangle_chunk_offsets[g]; k < triangle_chunk_offsets[g + 1];
+       ++k)
+    volume += chunk_volumes[k];
+  float weighted = 0.0f;
+  for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k)
+    weighted += chunk_weighted[k];
+  const float missing = rest_volumes[g] - volume / 6.0f;
+  fractions[g] = weighted > 0.0f && missing > 0.0f
+                     ? fmin(missing / weighted, limit)
+                     : 0.0f;
+}
+
+// The step (volumeRestoreStep): each weighted vertex moved out along its
+// unit skinned normal (times its sign: outward) by its group's fraction of
+// its weight.
+__kernel void track_restore_apply(
+    const uint vertex_count, __global const int* groups,
+    __global const float* weights, __global const float* fractions,
+    __global const float* skinned_normals, __global const int* source,
+    __global const float* signs, __global float* positions) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const int g = groups[v];
+  if (g < 0) return;
+  const float w = weights[v];
+  if (!(w > 0.0f)) return;
+  const float3 n = vload3(source[v], skinned_normals);
+  const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+  vstore3(vload3(v, positions) + (signs[v] * fractions[g] * w / length) * n, v,
+          positions);
+}
