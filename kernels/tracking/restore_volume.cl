@@ -42,17 +42,18 @@ __kernel void track_volume_chunks(const uint chunk_count,
 
 // Each chunk's vertices' weights (volumeRestoreWeight: the inward move from
 // the skinned position along the skinned normal times its sign (outward),
-// times 1 - gamma, of the
-// converged vertices where beta = 0; 0 for the others), written per vertex,
-// and their sum weighted by the vertices' rest areas.
+// times 1 - gamma, of the converged vertices where beta = 0, faded by the
+// share of their ring that moves too; 0 for the others), written per
+// vertex, and their sum weighted by the vertices' rest areas.
 __kernel void track_restore_weights(
     const uint chunk_count, __global const int4* chunks,
     __global const int* entries, __global const uchar* states,
     __global const float2* beta, __global const float* positions,
     __global const float* skinned, __global const float* skinned_normals,
     __global const int* source, __global const float* areas,
-    __global const float* signs, __global float* weights,
-    __global float* chunk_weighted) {
+    __global const float* signs, __global const int* groups,
+    __global const uint* ring_offsets, __global const int* ring_neighbours,
+    __global float* weights, __global float* chunk_weighted) {
   const uint k = get_global_id(0);
   if (k >= chunk_count) return;
   const int4 chunk = chunks[k];
@@ -71,6 +72,16 @@ __kernel void track_restore_weights(
             -signs[v] * (d.x * n.x + d.y * n.y + d.z * n.z) / length;
         if (inward > 0.0f) w = inward * (1.0f - bc.y);
       }
+    }
+    if (w > 0.0f) {
+      const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
+      int moving = 0;
+      for (uint i = begin; i < end; ++i) {
+        const int u = ring_neighbours[i];
+        moving += states[u] == ISK_TRACK_CONVERGED && !(beta[u].x > 0.0f) &&
+                  groups[u] >= 0;
+      }
+      if (end > begin) w *= (float)moving / (float)(end - begin);
     }
     weights[v] = w;
     sum += w * areas[v];

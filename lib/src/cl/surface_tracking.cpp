@@ -644,8 +644,11 @@ void ClSurfaceTracking::restoreVolume() {
     restore_weights_.setArg(8, begin_source_);
     restore_weights_.setArg(9, volume_areas_);
     restore_weights_.setArg(10, volume_signs_);
-    restore_weights_.setArg(11, restore_weights_buffer_);
-    restore_weights_.setArg(12, volume_chunk_sums_[1]);
+    restore_weights_.setArg(11, volume_groups_);
+    restore_weights_.setArg(12, ring_offsets_);
+    restore_weights_.setArg(13, ring_neighbours_);
+    restore_weights_.setArg(14, restore_weights_buffer_);
+    restore_weights_.setArg(15, volume_chunk_sums_[1]);
     launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
     restore_fractions_.setArg(0, static_cast<cl_uint>(volume_group_count_));
     restore_fractions_.setArg(1, volume_triangle_chunk_offsets_);

@@ -1450,6 +1450,21 @@ void CpuSurfaceTracking::restoreVolume() {
         states_[v], beta_[2 * v], beta_[2 * v + 1],
         positions_.row(v).transpose(), skinned_.row(v).transpose(),
         fallback_normals_.row(v).transpose(), groups.normal_sign[v]);
+    if (restore_weights_[v] > 0.f) {
+      // Faded by the share of its ring that does not move (a contact, a
+      // crease, a part left alone): no shear against a border that stays.
+      const OneRings& rings = mesh_->rings;
+      int moving = 0;
+      const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
+      for (uint32_t i = begin; i < end; ++i) {
+        const int u = rings.neighbours[i];
+        moving += states_[u] == TrackState::kConverged &&
+                  !(beta_[2 * u] > 0.f) && groups.vertex_group[u] >= 0;
+      }
+      if (end > begin)
+        restore_weights_[v] *=
+            static_cast<float>(moving) / static_cast<float>(end - begin);
+    }
     weighted[g] += restore_weights_[v] * groups.vertex_area[v];
   }
   for (int g = 0; g < group_count; ++g)

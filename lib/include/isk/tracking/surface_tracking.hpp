@@ -61,9 +61,11 @@
 // 0) and outside parts dressed in clothes' layers, are moved back out along
 // n by a common fraction lambda of their inward move, weighted by
 // (1 - gamma):
-//   x <- x + lambda w n,  w = max(0, -(x - s).n) (1 - gamma),
+//   x <- x + lambda w n,  w = max(0, -(x - s).n) (1 - gamma) m,
 //   lambda = clamp((V_rest - V) / sum(w A), 0, volume_restore),
-// A a third of the rest area of the vertex's triangles: the union's
+// m the share of the vertex's one-ring that moves too (no shear against a
+// contact's border), A a third of the rest area of the vertex's
+// triangles: the union's
 // notches on the outside of bends go back towards the skinning's surface
 // while the contacts stay. Components with holes (more than 1% of their
 // vertices on a border) and meshes that enclose no volume are left alone.
