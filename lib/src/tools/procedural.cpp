@@ -258,23 +258,31 @@ Rig makeCylinderRig(const CylinderRigOptions& options) {
 
 namespace {
 
+// Half-axes (y, z) at control points xs along the tube, blended smoothly
+// (smoothstep) between them; kept as they are beyond the last.
+std::function<Eigen::Vector2f(float)> controlPointRadii(std::vector<float> xs,
+                                                        std::vector<float> ry,
+                                                        std::vector<float> rz) {
+  return [xs = std::move(xs), ry = std::move(ry), rz = std::move(rz)](float x) {
+    const size_t last = xs.size() - 1;
+    size_t i = 0;
+    while (i + 1 < last && x > xs[i + 1]) ++i;
+    const float a = smoothstep(xs[i], xs[i + 1], x);
+    return Eigen::Vector2f((1 - a) * ry[i] + a * ry[i + 1],
+                           (1 - a) * rz[i] + a * rz[i + 1]);
+  };
+}
+
 TubeSpec armSpec(int rings_per_unit, int segments) {
   TubeSpec spec;
   spec.name = "arm";
   spec.joint_x = {0.f, 3.f, 5.6f, 7.4f};
   spec.joint_names = {"shoulder", "elbow", "wrist", "hand_tip"};
-  // Half-axes (y, z) at control points along x, blended smoothly: a round
-  // upper arm and forearm, a narrow wrist and a flat hand.
-  spec.radii = [](float x) {
-    static const float xs[] = {0.f, 1.5f, 3.f, 4.0f, 5.6f, 6.4f, 7.4f};
-    static const float ry[] = {0.60f, 0.52f, 0.42f, 0.45f, 0.28f, 0.42f, 0.30f};
-    static const float rz[] = {0.60f, 0.52f, 0.42f, 0.42f, 0.22f, 0.14f, 0.10f};
-    int i = 0;
-    while (i + 2 < 7 && x > xs[i + 1]) ++i;
-    const float a = smoothstep(xs[i], xs[i + 1], x);
-    return Eigen::Vector2f((1 - a) * ry[i] + a * ry[i + 1],
-                           (1 - a) * rz[i] + a * rz[i + 1]);
-  };
+  // A round upper arm and forearm, a narrow wrist and a flat hand.
+  spec.radii =
+      controlPointRadii({0.f, 1.5f, 3.f, 4.0f, 5.6f, 6.4f, 7.4f},
+                        {0.60f, 0.52f, 0.42f, 0.45f, 0.28f, 0.42f, 0.30f},
+                        {0.60f, 0.52f, 0.42f, 0.42f, 0.22f, 0.14f, 0.10f});
   spec.rings = static_cast<int>(7.4f * rings_per_unit) + 1;
   spec.segments = segments;
   spec.blend_width = 0.2f;
@@ -314,16 +322,10 @@ Rig makeLegRig(int rings_per_unit, int segments) {
   spec.joint_names = {"hip", "knee", "ankle", "toe_tip"};
   // A thick thigh narrowing to the knee, a calf, a narrow ankle and a flat
   // foot (flattened as the arm's hand).
-  spec.radii = [](float x) {
-    static const float xs[] = {0.f, 2.0f, 4.5f, 5.8f, 8.5f, 9.3f, 10.3f};
-    static const float ry[] = {0.95f, 0.80f, 0.55f, 0.62f, 0.33f, 0.45f, 0.35f};
-    static const float rz[] = {0.95f, 0.80f, 0.55f, 0.60f, 0.30f, 0.22f, 0.14f};
-    int i = 0;
-    while (i + 2 < 7 && x > xs[i + 1]) ++i;
-    const float a = smoothstep(xs[i], xs[i + 1], x);
-    return Eigen::Vector2f((1 - a) * ry[i] + a * ry[i + 1],
-                           (1 - a) * rz[i] + a * rz[i + 1]);
-  };
+  spec.radii =
+      controlPointRadii({0.f, 2.0f, 4.5f, 5.8f, 8.5f, 9.3f, 10.3f},
+                        {0.95f, 0.80f, 0.55f, 0.62f, 0.33f, 0.45f, 0.35f},
+                        {0.95f, 0.80f, 0.55f, 0.60f, 0.30f, 0.22f, 0.14f});
   spec.rings = static_cast<int>(10.3f * rings_per_unit) + 1;
   spec.segments = segments;
   spec.blend_width = 0.2f;
