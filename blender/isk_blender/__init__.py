@@ -289,7 +289,8 @@ class ISK_OT_build(bpy.types.Operator):
             contact_angle=settings.contact_angle,
             smoothing_steps=settings.smoothing_steps,
             relaxation=settings.relaxation,
-            base_skinning=settings.base_skinning,
+            volume_restore=settings.volume_restore,
+            base_skinning=settings.base_skinning, layers=settings.layers,
             cache_dir=cache_folder(settings), progress=progress)
 
 
@@ -354,6 +355,16 @@ class IskSettings(bpy.types.PropertyGroup):
                                  max=100)
     relaxation: BoolProperty(name="Relaxation", default=True,
                              description="Tangential relaxation")
+    volume_restore: FloatProperty(
+        name="Volume restoration", default=1.0, min=0.0, max=1.0,
+        description="The largest fraction of a vertex's inward move from "
+                    "skinning given back where a closed part lost volume "
+                    "(0: off)")
+    layers: BoolProperty(
+        name="Clothes layers", default=True,
+        description="Leave layers of clothes (meshes that wrap a bone "
+                    "around the skin) out of the fit: they follow the "
+                    "skin's field")
     max_influences: IntProperty(
         name="Max influences", default=4, min=1, max=8,
         description="The largest bone weights kept per vertex")
@@ -403,6 +414,8 @@ class ISK_PT_panel(bpy.types.Panel):
             box.prop(settings, "contact_angle")
             box.prop(settings, "smoothing_steps")
             box.prop(settings, "relaxation")
+            box.prop(settings, "volume_restore")
+            box.prop(settings, "layers")
             layout.prop(settings, "cache_folder")
         layout.prop(settings, "max_influences")
         row = layout.row()
