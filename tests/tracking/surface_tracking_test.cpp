@@ -118,6 +118,11 @@ float frameTolerance(const ClContext& context) {
 }
 // Fraction of vertices allowed beyond the frame tolerance (threshold flips).
 constexpr double kFlipFraction = 0.002;
+// The same for whole frames and for stages chained on each backend's own
+// state: a vertex whose march drifts apart by rounding, or stops one step
+// apart, is spread by the crease steps over five rings and to its seam
+// copies.
+constexpr double kSpreadFlipFraction = 0.01;
 
 TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
   EXPECT_TRUE(SurfaceTrackingOptions().validate());
@@ -876,6 +881,22 @@ TEST(TrackingMesh, VolumeGroupsOnAssets) {
   }
 }
 
+// The enclosed volume of volume group g at `positions` (#V by 3).
+double groupVolume(const TrackingMesh::VolumeGroups& groups, int g,
+                   const Matrix3Xf& positions) {
+  const auto corner = [&](int t, int k) -> Eigen::Vector3d {
+    return positions.row(groups.corners[3 * t + k]).transpose().cast<double>();
+  };
+  const Eigen::Vector3d origin = corner(groups.triangle_offsets[g], 0);
+  double six_volume = 0;
+  for (int t = groups.triangle_offsets[g]; t < groups.triangle_offsets[g + 1];
+       ++t)
+    six_volume +=
+        (corner(t, 0) - origin)
+            .dot((corner(t, 1) - origin).cross(corner(t, 2) - origin));
+  return six_volume / 6;
+}
+
 void checkVolumeRestoration(const Rig& rig,
                             std::shared_ptr<const ImplicitFields> fields,
                             const TransformList& pose) {
@@ -917,8 +938,17 @@ void checkVolumeRestoration(const Rig& rig,
   if (std::abs(rest) < 1e-6 * std::pow(rig.boundingBoxDiagonal(), 3))
     return;  // a flat mesh: no volume to keep
   EXPECT_GE(a, b - 1e-4);
-  // Never past the rest volume (linearized: a hair past it).
-  EXPECT_LE(a, std::max(b, 1.0) + 2e-3);
+  // No component past its rest volume (linearized: a hair past it) unless
+  // it was without the restoration; the whole mesh may be, where some
+  // components grew and others are given back what they lost.
+  const TrackingMesh::VolumeGroups& groups = with.trackingMesh().volume_groups;
+  for (int g = 0; g < groups.groupCount(); ++g) {
+    const double group_with = groupVolume(groups, g, with.positions());
+    const double group_without = groupVolume(groups, g, without.positions());
+    EXPECT_LE(group_with, std::max(group_without, groups.rest_volume[g]) +
+                              2e-3 * groups.rest_volume[g])
+        << "component " << g;
+  }
   EXPECT_LE(pairs_with, pairs_without + pairs_without / 20 + 2);
 }
 
@@ -1579,7 +1609,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
         if ((positions.row(v) - cpu.positions().row(v)).norm() > tolerance &&
             beyond++ == 0)
           first = static_cast<int>(v);
-      EXPECT_LE(beyond, kFlipFraction * positions.rows())
+      EXPECT_LE(beyond, kSpreadFlipFraction * positions.rows())
           << stage << ": first vertex beyond the tolerance " << first;
       EXPECT_LT(worst.distance, 0.02f * diagonal) << stage;
     } else {
@@ -1608,9 +1638,17 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     cl.project(options.projection_steps);
     compare("projection");
     cl.readPreviousGradients(prev);
+    // What the next steps read: the previous gradient (the contact stop)
+    // and the frame (the relaxation) of a vertex still marching on both.
+    // A vertex that stopped in the same state may have taken one step more
+    // on one side, where its field gap crossed the tolerance by a rounding.
+    const auto marching = [&](Eigen::Index v) {
+      return states[v] == TrackState::kMarching &&
+             cpu.states()[v] == TrackState::kMarching;
+    };
     float prev_error = 0;
     for (Eigen::Index v = 0; v < prev.rows(); ++v)
-      if (states[v] == cpu.states()[v])
+      if (marching(v))
         prev_error = std::max(
             prev_error, (prev.row(v) - cpu.previousGradients().row(v)).norm());
     // Chained, a vertex near a threshold drifts apart: positions tell.
@@ -1619,7 +1657,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     cl.readRelaxFrames(frames);
     float frame_error = 0;
     for (Eigen::Index v = 0; v < frames.rows(); ++v)
-      if (states[v] == cpu.states()[v])
+      if (marching(v))
         frame_error = std::max(
             frame_error, (frames.row(v) - cpu.relaxFrames().row(v)).norm());
     if (!chained) EXPECT_LT(frame_error, 1e-3f) << "relaxation frames";
@@ -1829,7 +1867,7 @@ void checkFrames(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
         if (first < 0) first = v;
       }
     }
-    EXPECT_LE(beyond, kFlipFraction * positions.rows())
+    EXPECT_LE(beyond, kSpreadFlipFraction * positions.rows())
         << "first vertex beyond the tolerance: " << first;
     // Even a vertex that stopped one step apart stays near.
     EXPECT_LT(worst, 0.02f * diagonal);
