@@ -24,6 +24,16 @@ ISK_INLINE float3 tangential_relaxation(const float3 x, const float3 centroid,
   return x + mu * d;
 }
 
+// Skinned-ring relaxation (skinnedRingOffset): the skinned ring's offset
+// from its vertex, offset = sum_j w_j s_j - s, within the plane normal to
+// the skinned normal n (not unit); the whole offset where n vanishes.
+ISK_INLINE float3 skinned_ring_offset(const float3 offset, const float3 n) {
+  const float length2 = n.x * n.x + n.y * n.y + n.z * n.z;
+  if (!(length2 > 0.0f) || isinf(length2)) return offset;
+  return offset -
+         ((offset.x * n.x + offset.y * n.y + offset.z * n.z) / length2) * n;
+}
+
 // One tangential relaxation step, positions_in -> positions_out. With
 // skip_stopped = 0 every vertex is written; with 1 (active vertices) only
 // the marching ones: the others are the same in both buffers (track_begin
@@ -31,17 +41,17 @@ ISK_INLINE float3 tangential_relaxation(const float3 x, const float3 centroid,
 // surface the vertex marches to (its iso-surface, or the contact surface
 // while it marches to a contact) is taken as its last projection step
 // sampled it (relax_frames: signed distance, unit normal; zero before any
-// step), so relaxation samples no field.
-__kernel void track_relax(const uint vertex_count,
-                          __global const float* positions_in,
-                          __global float* positions_out,
-                          __global const uchar* states,
-                          __global const float4* relax_frames,
-                          __global const uchar* rules,
-                          __global const uint* ring_offsets,
-                          __global const int* ring_neighbours,
-                          __global const float* ring_weights,
-                          const uint skip_stopped) {
+// step), so relaxation samples no field. With skinned_ring = 1 the skinned
+// ring's in-plane offset is taken out of the centroid (skinned positions and
+// normals in the input's order: source maps the device's vertex to it).
+__kernel void track_relax(
+    const uint vertex_count, __global const float* positions_in,
+    __global float* positions_out, __global const uchar* states,
+    __global const float4* relax_frames, __global const uchar* rules,
+    __global const uint* ring_offsets, __global const int* ring_neighbours,
+    __global const float* ring_weights, __global const float* skinned,
+    __global const float* skinned_normals, __global const int* source,
+    const uint skinned_ring, const uint skip_stopped) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   const bool marching = states[v] == ISK_TRACK_MARCHING;
@@ -53,9 +63,18 @@ __kernel void track_relax(const uint vertex_count,
   if (marching && rules[v] != ISK_RULE_FIXED &&
       unit.x * unit.x + unit.y * unit.y + unit.z * unit.z > 0.0f) {
     float3 centroid = (float3)(0.0f);
+    float3 skinned_centroid = (float3)(0.0f);
     const uint end = ring_offsets[v + 1];
-    for (uint i = ring_offsets[v]; i < end; ++i)
-      centroid += ring_weights[i] * vload3(ring_neighbours[i], positions_in);
+    for (uint i = ring_offsets[v]; i < end; ++i) {
+      const int j = ring_neighbours[i];
+      centroid += ring_weights[i] * vload3(j, positions_in);
+      if (skinned_ring)
+        skinned_centroid += ring_weights[i] * vload3(source[j], skinned);
+    }
+    if (skinned_ring)
+      centroid -=
+          skinned_ring_offset(skinned_centroid - vload3(source[v], skinned),
+                              vload3(source[v], skinned_normals));
     out = tangential_relaxation(x, centroid, frame);
   }
   vstore3(out, v, positions_out);

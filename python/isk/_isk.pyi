@@ -95,6 +95,7 @@ class ImplicitSkinner:
         contact_angle: Optional[float] = None,
         smoothing_steps: Optional[int] = None,
         relaxation: Optional[bool] = None,
+        skinned_ring_relaxation: Optional[bool] = None,
         volume_restore: Optional[float] = None,
         base_skinning: Method = "dqs",
         layers: bool = True,

@@ -122,6 +122,7 @@ class PyImplicitSkinner {
       std::optional<double> blend_theta, std::optional<int> rounds,
       std::optional<float> sigma, std::optional<float> contact_angle,
       std::optional<int> smoothing_steps, std::optional<bool> relaxation,
+      std::optional<bool> skinned_ring_relaxation,
       std::optional<float> volume_restore, const std::string& base_skinning,
       bool layers, std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
@@ -152,6 +153,8 @@ class PyImplicitSkinner {
     if (contact_angle) tracking.contact_angle_degrees = *contact_angle;
     if (smoothing_steps) tracking.smoothing_steps = *smoothing_steps;
     if (relaxation) tracking.relaxation = *relaxation;
+    if (skinned_ring_relaxation)
+      tracking.skinned_ring_relaxation = *skinned_ring_relaxation;
     if (volume_restore) tracking.volume_restore = *volume_restore;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
@@ -331,12 +334,13 @@ void registerSkinners(py::module_& m) {
                                 "Implicit skinning of one rig "
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
-      .def(py::init<
-               RigPtr, const std::string&, const std::string&, py::object,
-               std::optional<double>, std::optional<double>, std::optional<int>,
-               std::optional<float>, std::optional<float>, std::optional<int>,
-               std::optional<bool>, std::optional<float>, const std::string&,
-               bool, std::optional<std::string>, py::object>(),
+      .def(py::init<RigPtr, const std::string&, const std::string&, py::object,
+                    std::optional<double>, std::optional<double>,
+                    std::optional<int>, std::optional<float>,
+                    std::optional<float>, std::optional<int>,
+                    std::optional<bool>, std::optional<bool>,
+                    std::optional<float>, const std::string&, bool,
+                    std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
@@ -345,6 +349,7 @@ void registerSkinners(py::module_& m) {
            py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),
            py::arg("smoothing_steps") = py::none(),
            py::arg("relaxation") = py::none(),
+           py::arg("skinned_ring_relaxation") = py::none(),
            py::arg("volume_restore") = py::none(),
            py::arg("base_skinning") = "dqs", py::arg("layers") = true,
            py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())

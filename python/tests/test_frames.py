@@ -109,6 +109,19 @@ def test_volume_restore_option_reaches_the_tracking():
         isk.ImplicitSkinner(rig, device="reference", volume_restore=1.5)
 
 
+def test_skinned_ring_relaxation_option_reaches_the_tracking():
+    # The arm bent at 120 degrees: the relaxation as the paper writes it
+    # (skinned_ring_relaxation=False) gives other frames, on the reference
+    # and on OpenCL alike.
+    rig = isk.builtin_rig("arm")
+    pose = rig.bend_pose(120)
+    for device in ("reference", "opencl"):
+        on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
+        off = isk.ImplicitSkinner(rig, device=device,
+                                  skinned_ring_relaxation=False).deform(pose)[0]
+        assert not np.array_equal(on, off), device
+
+
 def test_layers_option_reaches_the_fit():
     # The sleeved arm's sleeve is a layer: fitted with the skin
     # (layers=False) the frames differ; the plain arm has none: the same

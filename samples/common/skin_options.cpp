@@ -141,6 +141,10 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
           ->capture_default_str(),
       app.add_flag("!--no-relaxation", tracking.relaxation,
                    "implicit: no tangential relaxation (eq. 5, 6)"),
+      app.add_flag("!--paper-relaxation", tracking.skinned_ring_relaxation,
+                   "implicit: relax towards the ring's centroid as eq. 5 "
+                   "writes it (by default the skinned ring's own in-plane "
+                   "offset is taken out of it)"),
       app.add_option("--contact-entry", tracking.contact_entry,
                      "implicit: how far (field units) another part's field "
                      "must exceed a vertex's own before it marches to the "

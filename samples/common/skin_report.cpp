@@ -106,6 +106,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"contact_angle_degrees", t.contact_angle_degrees},
           {"tolerance", t.tolerance},
           {"relaxation", t.relaxation},
+          {"skinned_ring_relaxation", t.skinned_ring_relaxation},
           {"home_contact", t.home_contact},
           {"contact_entry", t.contact_entry},
           {"contact_home_slack", t.contact_home_slack},

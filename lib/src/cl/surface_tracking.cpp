@@ -528,8 +528,13 @@ void ClSurfaceTracking::relax() {
     relax_.setArg(6, ring_offsets_);
     relax_.setArg(7, ring_neighbours_);
     relax_.setArg(8, ring_weights_);
-    relax_.setArg(9, static_cast<cl_uint>(
-                         detail::tuningOf(options_).active_vertices ? 1 : 0));
+    relax_.setArg(9, skinned_positions_);
+    relax_.setArg(10, fallback_normals_);
+    relax_.setArg(11, begin_source_);
+    relax_.setArg(
+        12, static_cast<cl_uint>(options_.skinned_ring_relaxation ? 1 : 0));
+    relax_.setArg(13, static_cast<cl_uint>(
+                          detail::tuningOf(options_).active_vertices ? 1 : 0));
     launch(relax_, kRelaxation);
     current_ = 1 - current_;
   } catch (const cl::Error& e) {

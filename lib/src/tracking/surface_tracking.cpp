@@ -26,8 +26,9 @@ constexpr float kSameNormalCos = 0.99f;
 
 // The paper's steps, named as in the kernels (kernels/tracking/):
 // newtonStep, contactStop, marchToContact, tangentialRelaxation,
-// smoothingStep, strainLimitStep. prev_gradients' w (ISK_GRADIENT_* of
-// kernels/abi.h) says what the vertex's last projection step was.
+// skinnedRingOffset, smoothingStep, strainLimitStep. prev_gradients' w
+// (ISK_GRADIENT_* of kernels/abi.h) says what the vertex's last projection step
+// was.
 
 // Eq. 4: one step of x towards the surface where the field's value gap
 // (iso - f) closes, along the unit gradient, of sigma * gap / |gradient|
@@ -104,6 +105,16 @@ Eigen::Vector3f tangentialRelaxation(const Eigen::Vector3f& x,
   Eigen::Vector3f d = centroid - x;
   d -= d.dot(unit) * unit;
   return x + mu * d;
+}
+
+// Skinned-ring relaxation (surface_tracking.hpp): the skinned ring's offset
+// from its vertex, offset = sum_j w_j s_j - s, within the plane normal to
+// the skinned normal n (not unit); the whole offset where n vanishes.
+Eigen::Vector3f skinnedRingOffset(const Eigen::Vector3f& offset,
+                                  const Eigen::Vector3f& n) {
+  const float length2 = n.squaredNorm();
+  if (!(length2 > 0.f) || !std::isfinite(length2)) return offset;
+  return offset - (offset.dot(n) / length2) * n;
 }
 
 // Eq. 7: one localized Laplacian step, the offset d to the near centroid
@@ -1181,6 +1192,7 @@ void CpuSurfaceTracking::relax() {
   scratch_ = positions_;
   const OneRings& rings = mesh_->rings;
   const RelaxationWeights& relaxation = mesh_->relaxation;
+  const bool skinned_ring = options_.skinned_ring_relaxation;
   for (int v = 0; v < n; ++v) {
     if (states_[v] != TrackState::kMarching ||
         relaxation.rules[v] == RelaxationRule::kFixed)
@@ -1193,9 +1205,16 @@ void CpuSurfaceTracking::relax() {
     if (!(unit.squaredNorm() > 0.f)) continue;  // no step this frame
     const Eigen::Vector3f x = positions_.row(v).transpose();
     Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
-    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
-      centroid += relaxation.weights[i] *
-                  positions_.row(rings.neighbours[i]).transpose();
+    Eigen::Vector3f skinned_centroid = Eigen::Vector3f::Zero();
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i) {
+      const int j = rings.neighbours[i];
+      centroid += relaxation.weights[i] * positions_.row(j).transpose();
+      skinned_centroid += relaxation.weights[i] * skinned_.row(j).transpose();
+    }
+    if (skinned_ring)
+      centroid -=
+          skinnedRingOffset(skinned_centroid - skinned_.row(v).transpose(),
+                            fallback_normals_.row(v).transpose());
     scratch_.row(v) = tangentialRelaxation(x, centroid, frame).transpose();
   }
   positions_.swap(scratch_);

@@ -19,6 +19,16 @@
 // projection step sampled it, with that step's f: no new field sample):
 //   x <- x + mu T(sum_j w_j x_j - x),  mu = max(0, 1 - (|f - iso| - 1)^4),
 // with the rest pose's weights (isk/core/one_ring.hpp, RelaxationWeights).
+// Skinned-ring relaxation (skinned_ring_relaxation, on by default; our
+// addition, see docs/algorithm.md): the centroid is taken less the skinned
+// ring's own offset from the vertex within the skinned tangent plane,
+//   x <- x + mu T(sum_j w_j x_j - P(sum_j w_j s_j - s) - x),
+// s the skinned positions and P the projection normal to the vertex's
+// skinned normal. Where the weights do not reproduce the vertex in its rest
+// tangent plane (clamped mean value weights, a non-manifold ring's uniform
+// ones, the long thin triangles of a coarse mesh) eq. 5 would move it even
+// at rest; with P(...) taken out, rest and every rigid motion of the ring
+// are left where skinning put them.
 // Smoothing (eq. 7): beta = 1 on contact vertices, 0 elsewhere; diffused
 // `beta_diffusion` times over the one-ring (contact vertices stay at 1, the
 // others take the mean of themselves and their neighbours); then
@@ -140,6 +150,9 @@ struct SurfaceTrackingOptions {
   // |grad f| * diagonal below it: the gradient has vanished (lost).
   float min_gradient = 1e-3f;
   bool relaxation = true;  // eq. 5, 6
+  // The skinned ring's in-plane offset taken out of the relaxation's
+  // centroid (see above); false: eq. 5 as the paper writes it.
+  bool skinned_ring_relaxation = true;
   // Contact by home field (see above) and the gap it leaves, field units.
   bool home_contact = true;
   float contact_gap = 0.05f;
