@@ -289,6 +289,7 @@ class ISK_OT_build(bpy.types.Operator):
             contact_angle=settings.contact_angle,
             smoothing_steps=settings.smoothing_steps,
             relaxation=settings.relaxation,
+            skinned_ring_relaxation=settings.skinned_ring_relaxation,
             volume_restore=settings.volume_restore,
             base_skinning=settings.base_skinning, layers=settings.layers,
             cache_dir=cache_folder(settings), progress=progress)
@@ -355,6 +356,11 @@ class IskSettings(bpy.types.PropertyGroup):
                                  max=100)
     relaxation: BoolProperty(name="Relaxation", default=True,
                              description="Tangential relaxation")
+    skinned_ring_relaxation: BoolProperty(
+        name="Skinned-ring relaxation", default=True,
+        description="Relax towards the skinned ring's layout, so that a "
+                    "coarse mesh's rings stay where skinning put them (off: "
+                    "the paper's eq. 5 as written)")
     volume_restore: FloatProperty(
         name="Volume restoration", default=1.0, min=0.0, max=1.0,
         description="The largest fraction of a vertex's inward move from "
@@ -414,6 +420,7 @@ class ISK_PT_panel(bpy.types.Panel):
             box.prop(settings, "contact_angle")
             box.prop(settings, "smoothing_steps")
             box.prop(settings, "relaxation")
+            box.prop(settings, "skinned_ring_relaxation")
             box.prop(settings, "volume_restore")
             box.prop(settings, "layers")
             layout.prop(settings, "cache_folder")
