@@ -28,7 +28,9 @@
 // tangent plane (clamped mean value weights, a non-manifold ring's uniform
 // ones, the long thin triangles of a coarse mesh) eq. 5 would move it even
 // at rest; with P(...) taken out, rest and every rigid motion of the ring
-// are left where skinning put them.
+// are left where skinning put them within the skin's tangent plane (the
+// ring's curvature, along the normal, moves the vertex as in eq. 5 where
+// the field's gradient is tilted from the skin's normal).
 // Smoothing (eq. 7): beta = 1 on contact vertices, 0 elsewhere; diffused
 // `beta_diffusion` times over the one-ring (contact vertices stay at 1, the
 // others take the mean of themselves and their neighbours); then
