@@ -362,7 +362,7 @@ class IskSettings(bpy.types.PropertyGroup):
                     "coarse mesh's rings stay where skinning put them (off: "
                     "the paper's eq. 5 as written)")
     volume_restore: FloatProperty(
-        name="Volume restoration", default=1.0, min=0.0, max=1.0,
+        name="Volume restoration", default=1.0, min=0.0, max=3.0,
         description="The largest fraction of a vertex's inward move from "
                     "skinning given back where a closed part lost volume "
                     "(0: off)")

@@ -106,7 +106,7 @@ def test_volume_restore_option_reaches_the_tracking():
                               volume_restore=0.0).deform(pose)[0]
     assert not np.array_equal(on, off)
     with pytest.raises(isk.InvalidArgumentError, match="volume_restore"):
-        isk.ImplicitSkinner(rig, device="reference", volume_restore=1.5)
+        isk.ImplicitSkinner(rig, device="reference", volume_restore=3.5)
 
 
 def test_skinned_ring_relaxation_option_reaches_the_tracking():

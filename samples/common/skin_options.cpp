@@ -173,8 +173,9 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
       app.add_option("--volume-restore", tracking.volume_restore,
                      "implicit: the largest fraction of a vertex's inward "
                      "move from skinning given back where a closed part "
-                     "lost volume, [0, 1] (0: off)")
-          ->check(CLI::Range(0.0, 1.0))
+                     "lost volume, [0, 3] (0: off; above 1 the skin is pushed "
+                     "past skinning's surface there)")
+          ->check(CLI::Range(0.0, 3.0))
           ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "

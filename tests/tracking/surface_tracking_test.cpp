@@ -1167,6 +1167,35 @@ TEST(SurfaceTracking, VolumeRestorationOnProceduralRigs) {
       enclosedVolume(without.positions(), arm.mesh.triangles) / rest + 0.002);
 }
 
+// Above 1 the restoration may push the skin past its skinned position: the
+// arm bent 120 degrees keeps more volume with 2 than with 1, no component
+// past its rest volume, and no more new pairs.
+TEST(SurfaceTracking, VolumeRestorationAboveOneKeepsMoreVolume) {
+  const Rig& arm = test::rigNamed("arm");
+  const TransformList pose = test::bendAt(arm, arm.skeleton.find("elbow"), 120);
+  ImplicitSkinnerOptions twice;
+  twice.tracking.volume_restore = 2.f;
+  ASSERT_TRUE(twice.tracking.validate().isOk());
+  CpuImplicitSkinner once(arm, sharedFields("arm"));
+  CpuImplicitSkinner more(arm, sharedFields("arm"), twice);
+  once.run(pose);
+  more.run(pose);
+  const double rest = enclosedVolume(arm.mesh.positions, arm.mesh.triangles);
+  const double a = enclosedVolume(once.positions(), arm.mesh.triangles) / rest;
+  const double b = enclosedVolume(more.positions(), arm.mesh.triangles) / rest;
+  const FrameMeasures m1 = measureFrame(arm.mesh, once.positions());
+  const FrameMeasures m2 = measureFrame(arm.mesh, more.positions());
+  std::printf(
+      "[ arm, 120 deg ] volume / rest %.4f with volume_restore 1, %.4f with "
+      "2; new pairs %d, %d\n",
+      a, b, m1.new_pairs, m2.new_pairs);
+  EXPECT_GT(b, a + 0.004);
+  EXPECT_LE(b, 1.0 + 2e-3);
+  EXPECT_LE(m2.new_pairs, m1.new_pairs);
+  twice.tracking.volume_restore = 3.5f;
+  EXPECT_FALSE(twice.tracking.validate().isOk());
+}
+
 TEST(SurfaceTracking, VolumeRestorationOnAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("volume restoration on assets");
@@ -2125,6 +2154,17 @@ TEST(ImplicitSkinner, PaperRelaxationFramesMatchTheReferenceOnAssets) {
   for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkFrames(test::rigNamed(name), sharedFields(name), 2, options);
+  }
+}
+
+// A volume restoration above 1 reaches the kernels: its frames match the
+// reference's.
+TEST(ImplicitSkinner, VolumeRestorationAboveOneFramesMatchTheReference) {
+  ImplicitSkinnerOptions options;
+  options.tracking.volume_restore = 2.f;
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    checkFrames(test::rigNamed(name), sharedFields(name), 4, options);
   }
 }
 

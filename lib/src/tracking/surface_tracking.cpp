@@ -266,9 +266,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(contact_home_reach >= 0 && contact_home_reach <= 1))
     return bad("contact_home_reach " + std::to_string(contact_home_reach) +
                ": expected field units in [0, 1]");
-  if (!(volume_restore >= 0 && volume_restore <= 1))
+  if (!(volume_restore >= 0 && volume_restore <= 3))
     return bad("volume_restore " + std::to_string(volume_restore) +
-               ": expected a fraction in [0, 1]");
+               ": expected a fraction in [0, 3]");
   if (!(contact_gap >= 0 && contact_gap < 0.5f))
     return bad("contact_gap " + std::to_string(contact_gap) +
                ": expected field units in [0, 0.5)");

@@ -177,7 +177,9 @@ struct SurfaceTrackingOptions {
   // (docs/algorithm.md). 1: no such test.
   float contact_home_reach = 0.1f;
   // Volume restoration (see above): the largest fraction of a vertex's
-  // inward move from its skinned position given back, in [0, 1] (0: off).
+  // inward move from its skinned position given back, in [0, 3] (0: off;
+  // above 1 a vertex may go past its skinned position, outward, where the
+  // contacts took more volume than the inward moves hold).
   float volume_restore = 1.f;
   // Two fields joined by a blend are not other parts for the contact by
   // home field while their joint is turned by less than this from its bind
