@@ -1209,7 +1209,8 @@ void CpuSurfaceTracking::relax() {
     for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i) {
       const int j = rings.neighbours[i];
       centroid += relaxation.weights[i] * positions_.row(j).transpose();
-      skinned_centroid += relaxation.weights[i] * skinned_.row(j).transpose();
+      if (skinned_ring)
+        skinned_centroid += relaxation.weights[i] * skinned_.row(j).transpose();
     }
     if (skinned_ring)
       centroid -=
