@@ -54,6 +54,20 @@
 // (tracking/fold_guard.cl, CpuSurfaceTracking::weighFolds).
 #define ISK_FOLD_RAMP 0.1f
 
+// The crease gate's ramps (tracking/smooth.cl, CpuSurfaceTracking::smooth):
+// a crease vertex's source value is 1 where its ring's vector area fell to
+// ISK_CREASE_AREA_FULL of its skinned area, its near centroid shifted by
+// ISK_CREASE_SHIFT_FULL of the mean near rest length, or a spoke stretched
+// by ISK_CREASE_STRETCH_FULL of its rest length beyond its skinned length;
+// 0 above ISK_CREASE_AREA_NONE and below ISK_CREASE_SHIFT_NONE and
+// ISK_CREASE_STRETCH_NONE; linear between.
+#define ISK_CREASE_AREA_FULL 0.4f
+#define ISK_CREASE_AREA_NONE 0.8f
+#define ISK_CREASE_SHIFT_NONE 0.2f
+#define ISK_CREASE_SHIFT_FULL 0.5f
+#define ISK_CREASE_STRETCH_NONE 0.1f
+#define ISK_CREASE_STRETCH_FULL 0.3f
+
 // --- Active vertices: reach[v], the first diffusion step that may change v
 #define ISK_REACH_NONE 255
 #define ISK_REACH_MAX 254

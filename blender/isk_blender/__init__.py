@@ -290,6 +290,7 @@ class ISK_OT_build(bpy.types.Operator):
             smoothing_steps=settings.smoothing_steps,
             relaxation=settings.relaxation,
             skinned_ring_relaxation=settings.skinned_ring_relaxation,
+            crease_gate=settings.crease_gate,
             volume_restore=settings.volume_restore,
             base_skinning=settings.base_skinning, layers=settings.layers,
             cache_dir=cache_folder(settings), progress=progress)
@@ -361,6 +362,11 @@ class IskSettings(bpy.types.PropertyGroup):
         description="Relax towards the skinned ring's layout, so that a "
                     "coarse mesh's rings stay where skinning put them (off: "
                     "the paper's eq. 5 as written)")
+    crease_gate: BoolProperty(
+        name="Gated creases", default=True,
+        description="Spread only the creases between parts whose rings the "
+                    "march crushed, pushed or stretched out of their skinned "
+                    "layout (off: every crease)")
     volume_restore: FloatProperty(
         name="Volume restoration", default=1.0, min=0.0, max=3.0,
         description="The largest fraction of a vertex's inward move from "
@@ -421,6 +427,7 @@ class ISK_PT_panel(bpy.types.Panel):
             box.prop(settings, "smoothing_steps")
             box.prop(settings, "relaxation")
             box.prop(settings, "skinned_ring_relaxation")
+            box.prop(settings, "crease_gate")
             box.prop(settings, "volume_restore")
             box.prop(settings, "layers")
             layout.prop(settings, "cache_folder")

@@ -96,6 +96,7 @@ class ImplicitSkinner:
         smoothing_steps: Optional[int] = None,
         relaxation: Optional[bool] = None,
         skinned_ring_relaxation: Optional[bool] = None,
+        crease_gate: Optional[bool] = None,
         volume_restore: Optional[float] = None,
         base_skinning: Method = "dqs",
         layers: bool = True,

@@ -123,8 +123,9 @@ class PyImplicitSkinner {
       std::optional<float> sigma, std::optional<float> contact_angle,
       std::optional<int> smoothing_steps, std::optional<bool> relaxation,
       std::optional<bool> skinned_ring_relaxation,
-      std::optional<float> volume_restore, const std::string& base_skinning,
-      bool layers, std::optional<std::string> cache_dir, py::object progress)
+      std::optional<bool> crease_gate, std::optional<float> volume_restore,
+      const std::string& base_skinning, bool layers,
+      std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
@@ -155,6 +156,7 @@ class PyImplicitSkinner {
     if (relaxation) tracking.relaxation = *relaxation;
     if (skinned_ring_relaxation)
       tracking.skinned_ring_relaxation = *skinned_ring_relaxation;
+    if (crease_gate) tracking.crease_gate = *crease_gate;
     if (volume_restore) tracking.volume_restore = *volume_restore;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
@@ -334,13 +336,13 @@ void registerSkinners(py::module_& m) {
                                 "Implicit skinning of one rig "
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
-      .def(py::init<RigPtr, const std::string&, const std::string&, py::object,
-                    std::optional<double>, std::optional<double>,
-                    std::optional<int>, std::optional<float>,
-                    std::optional<float>, std::optional<int>,
-                    std::optional<bool>, std::optional<bool>,
-                    std::optional<float>, const std::string&, bool,
-                    std::optional<std::string>, py::object>(),
+      .def(py::init<
+               RigPtr, const std::string&, const std::string&, py::object,
+               std::optional<double>, std::optional<double>, std::optional<int>,
+               std::optional<float>, std::optional<float>, std::optional<int>,
+               std::optional<bool>, std::optional<bool>, std::optional<bool>,
+               std::optional<float>, const std::string&, bool,
+               std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
@@ -350,6 +352,7 @@ void registerSkinners(py::module_& m) {
            py::arg("smoothing_steps") = py::none(),
            py::arg("relaxation") = py::none(),
            py::arg("skinned_ring_relaxation") = py::none(),
+           py::arg("crease_gate") = py::none(),
            py::arg("volume_restore") = py::none(),
            py::arg("base_skinning") = "dqs", py::arg("layers") = true,
            py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())

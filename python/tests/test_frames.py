@@ -122,6 +122,19 @@ def test_skinned_ring_relaxation_option_reaches_the_tracking():
         assert not np.array_equal(on, off), device
 
 
+def test_crease_gate_option_reaches_the_tracking():
+    # Every joint of the leg bent to 120 degrees: spreading every crease
+    # (crease_gate=False) gives other frames, on the reference and on
+    # OpenCL alike.
+    rig = isk.builtin_rig("leg")
+    pose = rig.bend_pose(120)
+    for device in ("reference", "opencl"):
+        on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
+        off = isk.ImplicitSkinner(rig, device=device,
+                                  crease_gate=False).deform(pose)[0]
+        assert not np.array_equal(on, off), device
+
+
 def test_layers_option_reaches_the_fit():
     # The sleeved arm's sleeve is a layer: fitted with the skin
     # (layers=False) the frames differ; the plain arm has none: the same

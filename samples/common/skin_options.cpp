@@ -139,6 +139,15 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "implicit: Laplacian steps around contacts (eq. 7)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str(),
+      app.add_option("--crease-steps", tracking.crease_steps,
+                     "implicit: tangential Laplacian steps of the vertices "
+                     "piled in a crease between parts (0: none)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
+      app.add_flag("!--ungated-creases", tracking.crease_gate,
+                   "implicit: spread every crease between parts (by default "
+                   "only those whose rings the march crushed or pushed out "
+                   "of their skinned layout)"),
       app.add_flag("!--no-relaxation", tracking.relaxation,
                    "implicit: no tangential relaxation (eq. 5, 6)"),
       app.add_flag("!--paper-relaxation", tracking.skinned_ring_relaxation,

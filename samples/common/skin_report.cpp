@@ -115,6 +115,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"beta_diffusion", t.beta_diffusion},
           {"smoothing_steps", t.smoothing_steps},
           {"crease_steps", t.crease_steps},
+          {"crease_gate", t.crease_gate},
           {"volume_restore", t.volume_restore},
           {"strain_limit", t.strain_limit},
           {"strain_limit_steps", t.strain_limit_steps},

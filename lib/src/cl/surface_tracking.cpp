@@ -131,6 +131,8 @@ void ClSurfaceTracking::uploadLayout(
   ring_lengths_ = uploadReadOnly(*context_, layout.ring_lengths, &bytes_);
   near_offsets_ = uploadReadOnly(*context_, layout.near_offsets, &bytes_);
   near_neighbours_ = uploadReadOnly(*context_, layout.near_neighbours, &bytes_);
+  near_mean_lengths_ =
+      uploadReadOnly(*context_, layout.near_mean_lengths, &bytes_);
   reverse_offsets_ = uploadReadOnly(*context_, layout.reverse_offsets, &bytes_);
   reverse_neighbours_ =
       uploadReadOnly(*context_, layout.reverse_neighbours, &bytes_);
@@ -220,6 +222,7 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   for (auto& b : strain_moved_) b = rw(n);
   for (auto& b : fold_scratch_) b = rw(n * sizeof(float));
   fold_weights_ = rw(n * sizeof(float));
+  crease_sources_ = rw(n * sizeof(float));
   restore_weights_buffer_ = rw(n * sizeof(float));
   context_->queue().enqueueFillBuffer(restore_weights_buffer_, 0.0f, 0,
                                       n * sizeof(float));
@@ -232,7 +235,7 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   context_->queue().enqueueFillBuffer(
       volume_fractions_, 0.0f, 0,
       std::max<size_t>(volume_group_count_, 1) * sizeof(float));
-  bytes_ += n * sizeof(float) +
+  bytes_ += n * sizeof(float) + n * sizeof(float) +
             (static_cast<size_t>(volume_triangle_chunks_count_) +
              volume_vertex_chunks_count_ + volume_group_count_ + 3) *
                 sizeof(float);
@@ -555,6 +558,18 @@ void ClSurfaceTracking::smooth() {
     beta_init_.setArg(4, reverse_offsets_);
     beta_init_.setArg(5, reverse_neighbours_);
     beta_init_.setArg(6, reach_);
+    beta_init_.setArg(7, static_cast<cl_uint>(options_.crease_gate ? 1 : 0));
+    beta_init_.setArg(8, kinds_);
+    beta_init_.setArg(9, ring_offsets_);
+    beta_init_.setArg(10, ring_neighbours_);
+    beta_init_.setArg(11, near_offsets_);
+    beta_init_.setArg(12, near_neighbours_);
+    beta_init_.setArg(13, near_mean_lengths_);
+    beta_init_.setArg(14, positions_[current_]);
+    beta_init_.setArg(15, skinned_positions_);
+    beta_init_.setArg(16, begin_source_);
+    beta_init_.setArg(17, ring_lengths_);
+    beta_init_.setArg(18, crease_sources_);
     launch(beta_init_, kSmoothing);
     int b = 0;
     const int diffusions =
@@ -577,6 +592,7 @@ void ClSurfaceTracking::smooth() {
       beta_diffuse_.setArg(10, reverse_offsets_);
       beta_diffuse_.setArg(11, reverse_neighbours_);
       beta_diffuse_.setArg(12, reach_);
+      beta_diffuse_.setArg(13, crease_sources_);
       launch(beta_diffuse_, kSmoothing);
       b = 1 - b;
     }

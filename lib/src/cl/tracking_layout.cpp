@@ -88,10 +88,17 @@ void nearRows(const std::vector<float>& lengths, TrackingDeviceLayout* out) {
   const int n = static_cast<int>(out->order.size());
   out->near_offsets.assign(1, 0);
   out->near_neighbours.reserve(out->ring_neighbours.size());
+  out->near_mean_lengths.assign(n, 0.f);
   for (int k = 0; k < n; ++k) {
+    float length = 0.f;
+    int near = 0;
     for (uint32_t i = out->ring_offsets[k]; i < out->ring_offsets[k + 1]; ++i)
-      if (lengths[i] <= out->smoothing_radii[k])
+      if (lengths[i] <= out->smoothing_radii[k]) {
         out->near_neighbours.push_back(out->ring_neighbours[i]);
+        length += lengths[i];
+        ++near;
+      }
+    if (near > 0) out->near_mean_lengths[k] = length / static_cast<float>(near);
     out->near_offsets.push_back(
         static_cast<uint32_t>(out->near_neighbours.size()));
   }

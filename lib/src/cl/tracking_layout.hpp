@@ -41,6 +41,10 @@ struct TrackingDeviceLayout {
   // Laplacian steps average over.
   std::vector<uint32_t> near_offsets;
   std::vector<int> near_neighbours;
+  // Per device index the mean rest length of its near neighbours (summed in
+  // ring order, as CpuSurfaceTracking::smooth does), 0 where it has none:
+  // the crease gate's unit.
+  std::vector<float> near_mean_lengths;
   // Their transpose: the vertices whose near rows list each vertex, where a
   // contact or crease vertex pushes its reach (active vertices).
   std::vector<uint32_t> reverse_offsets;

@@ -127,6 +127,42 @@ Eigen::Vector3f smoothingStep(const Eigen::Vector3f& x,
   return x + b * d + (1.f - b) * c * tangential;
 }
 
+// The crease gate (surface_tracking.hpp): a crease vertex's source value of
+// gamma, from its ring's vector area now and skinned (the sum over the
+// closed ring of (x_j - x) x (x_j+1 - x)), the offset of its near centroid
+// from it now and skinned (shift, skinned_shift), its near neighbours' mean
+// rest length, and the largest stretch of a spoke beyond its skinned length
+// in rest lengths. 1 where the ring has no area now (no plane to shift in)
+// or the skinned ring none (no layout to compare with).
+float creaseGate(const Eigen::Vector3f& area,
+                 const Eigen::Vector3f& skinned_area,
+                 const Eigen::Vector3f& shift,
+                 const Eigen::Vector3f& skinned_shift, float mean_length,
+                 float stretch) {
+  const float length = area.norm();
+  const float skinned_length2 = skinned_area.squaredNorm();
+  if (!(length > 0.f) || !std::isfinite(length) || !(skinned_length2 > 0.f) ||
+      !std::isfinite(skinned_length2) || !(mean_length > 0.f))
+    return 1.f;
+  const float ratio = area.dot(skinned_area) / skinned_length2;
+  const float crushed =
+      std::clamp((ISK_CREASE_AREA_NONE - ratio) /
+                     (ISK_CREASE_AREA_NONE - ISK_CREASE_AREA_FULL),
+                 0.f, 1.f);
+  const Eigen::Vector3f unit = area / length;
+  Eigen::Vector3f moved = shift - skinned_shift;
+  moved -= moved.dot(unit) * unit;
+  const float shifted =
+      std::clamp((moved.norm() / mean_length - ISK_CREASE_SHIFT_NONE) /
+                     (ISK_CREASE_SHIFT_FULL - ISK_CREASE_SHIFT_NONE),
+                 0.f, 1.f);
+  const float stretched =
+      std::clamp((stretch - ISK_CREASE_STRETCH_NONE) /
+                     (ISK_CREASE_STRETCH_FULL - ISK_CREASE_STRETCH_NONE),
+                 0.f, 1.f);
+  return std::max(std::max(crushed, shifted), stretched);
+}
+
 // Volume restoration (surface_tracking.hpp): how far vertex x moved inward
 // from its skinned position s along the skinned normal (made unit), times
 // (1 - gamma), for the vertices that converged to their iso value where
@@ -1071,6 +1107,7 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
                      ? TrackState::kMarching
                      : TrackState::kUntracked;
   beta_.assign(2 * static_cast<size_t>(n), 0.f);
+  crease_sources_.assign(n, 0.f);
   times_ = {};
   begun_ = true;
 }
@@ -1227,10 +1264,65 @@ void CpuSurfaceTracking::smooth() {
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   const OneRings& rings = mesh_->rings;
+  // The crease gate's inputs at v, over positions p (the current or the
+  // skinned ones): the closed ring's vector area and the near centroid's
+  // offset from v.
+  auto ringArea = [&](const Matrix3Xf& p, int v) {
+    const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
+    const Eigen::Vector3f x = p.row(v).transpose();
+    Eigen::Vector3f area = Eigen::Vector3f::Zero();
+    for (uint32_t i = begin; i < end; ++i) {
+      const uint32_t j = i + 1 < end ? i + 1 : begin;
+      area += (p.row(rings.neighbours[i]).transpose() - x)
+                  .cross(p.row(rings.neighbours[j]).transpose() - x);
+    }
+    return area;
+  };
+  auto nearShift = [&](const Matrix3Xf& p, int v) {
+    const float radius = lengths_.smoothing_radius[v];
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    int near = 0;
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i) {
+      if (!(mesh_->ring_lengths[i] <= radius)) continue;
+      centroid += p.row(rings.neighbours[i]).transpose();
+      ++near;
+    }
+    centroid /= static_cast<float>(std::max(near, 1));
+    return Eigen::Vector3f(centroid - p.row(v).transpose());
+  };
+  auto creaseSource = [&](int v) {
+    if (!options_.crease_gate || rings.kinds[v] != RingKind::kClosed)
+      return 1.f;
+    const float radius = lengths_.smoothing_radius[v];
+    float length = 0.f;
+    int near = 0;
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
+      if (mesh_->ring_lengths[i] <= radius) {
+        length += mesh_->ring_lengths[i];
+        ++near;
+      }
+    if (near == 0) return 1.f;
+    // The largest stretch of a spoke beyond its skinned length, in rest
+    // lengths.
+    float stretch = 0.f;
+    const Eigen::Vector3f x = positions_.row(v).transpose();
+    const Eigen::Vector3f sx = skinned_.row(v).transpose();
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i) {
+      const int j = rings.neighbours[i];
+      const float now = (positions_.row(j).transpose() - x).norm();
+      const float skinned = (skinned_.row(j).transpose() - sx).norm();
+      stretch = std::max(stretch, (now - skinned) / mesh_->ring_lengths[i]);
+    }
+    return creaseGate(ringArea(positions_, v), ringArea(skinned_, v),
+                      nearShift(positions_, v), nearShift(skinned_, v),
+                      length / static_cast<float>(near), stretch);
+  };
   beta_.assign(2 * static_cast<size_t>(n), 0.f);
+  crease_sources_.assign(n, 0.f);
   for (int v = 0; v < n; ++v) {
     beta_[2 * v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
-    beta_[2 * v + 1] = states_[v] == TrackState::kCrease ? 1.f : 0.f;
+    if (states_[v] == TrackState::kCrease) crease_sources_[v] = creaseSource(v);
+    beta_[2 * v + 1] = crease_sources_[v];
   }
   const int diffusions =
       std::max(options_.beta_diffusion, options_.crease_diffusion);
@@ -1245,15 +1337,15 @@ void CpuSurfaceTracking::smooth() {
       for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
         count += mesh_->ring_lengths[i] <= radius ? 1.f : 0.f;
       for (int c = 0; c < 2; ++c) {
-        // Sources stay at 1.
-        if (!channel[c] || (c == 0 && states_[v] == TrackState::kContact) ||
-            (c == 1 && states_[v] == TrackState::kCrease))
+        // Contacts stay at 1, creases at their source value or more.
+        if (!channel[c] || (c == 0 && states_[v] == TrackState::kContact))
           continue;
         float sum = beta_[2 * v + c];
         for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i)
           if (mesh_->ring_lengths[i] <= radius)
             sum += beta_[2 * static_cast<size_t>(rings.neighbours[i]) + c];
-        beta_scratch_[2 * v + c] = sum / count;
+        beta_scratch_[2 * v + c] =
+            c == 1 ? std::max(sum / count, crease_sources_[v]) : sum / count;
       }
     }
     beta_.swap(beta_scratch_);

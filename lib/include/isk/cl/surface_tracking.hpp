@@ -166,6 +166,9 @@ class ClSurfaceTracking {
   // The one-rings filtered to the neighbours within each vertex's smoothing
   // radius (rest distance), in ring order (diffusion, Laplacian steps).
   cl::Buffer near_offsets_, near_neighbours_;
+  // Per vertex the near neighbours' mean rest length, and gamma's source
+  // value of the frame (the crease gate).
+  cl::Buffer near_mean_lengths_, crease_sources_;
   // Their transpose (active vertices: where a vertex pushes its reach),
   // and per vertex the first diffusion step it is in reach of (uchar).
   cl::Buffer reverse_offsets_, reverse_neighbours_, reach_;

@@ -41,6 +41,19 @@
 // steps: x <- x + (1 - beta) gamma T(centroid - x),
 // T removing the component along the ring's normal, so that vertices piled
 // in a crease spread out without the crease shrinking.
+// Crease gate (crease_gate, on by default; our addition, see
+// docs/algorithm.md): a crease vertex is a source of gamma only as far as
+// the march distorted its ring from the skinned layout. Its source value is
+// the largest of three ramps: the ring's vector area now over its skinned
+// vector area (1 at 0.4 and below, 0 from 0.8 on: crushed); the shift of
+// the near centroid from the vertex, now less skinned, within the ring's
+// plane, over the near neighbours' mean rest length (0 at 0.2 and below, 1
+// from 0.5 on: pushed out of its ring); and the largest stretch of a spoke
+// beyond its skinned length, over its rest length (0 at 0.1 and below, 1
+// from 0.3 on: a spike). Crease vertices keep at least their source value
+// through the diffusion. A crease the march left in its skinned layout is
+// not spread: the uniform centroid of an irregular ring is not its vertex,
+// and the steps would strain the skin around it.
 // Boundary, isolated and duplicate vertices are neither relaxed nor smoothed.
 // Strain limit (our addition, see docs/algorithm.md): last, every tracked
 // vertex's offset from its skinned position, d = x - s, is made to vary
@@ -197,6 +210,9 @@ struct SurfaceTrackingOptions {
   // Laplacian steps.
   int crease_diffusion = 5;
   int crease_steps = 10;
+  // The crease gate (see above); false: every crease vertex is a source of
+  // gamma = 1.
+  bool crease_gate = true;
   // The strain limit (see above): the largest difference of two neighbours'
   // offsets from skinning, as a fraction of their rest distance, and the
   // Jacobi steps that enforce it (0: no limit).
@@ -493,6 +509,9 @@ class CpuSurfaceTracking {
   const std::vector<TrackState>& states() const { return states_; }
   // Two per vertex: beta (contacts, eq. 7) and gamma (creases).
   const std::vector<float>& beta() const { return beta_; }
+  // #V: gamma's source value of each crease vertex (the crease gate, 1
+  // without it), 0 elsewhere (after smooth()).
+  const std::vector<float>& creaseSources() const { return crease_sources_; }
   const Matrix4Xf& previousGradients() const { return prev_; }
   // #V by 4: the surface each vertex marches to as its last projection step
   // sampled it (signed distance f - iso, or the contact function c, then
@@ -546,7 +565,7 @@ class CpuSurfaceTracking {
   void checkBegun(const char* stage) const;
   Matrix4Xf prev_;          // previous unit gradient, w = 1 when set
   Matrix4Xf relax_frames_;  // see relaxFrames()
-  std::vector<float> beta_, beta_scratch_;
+  std::vector<float> beta_, beta_scratch_, crease_sources_;
   // The fold guard: the frame's triangle frames (fold_frames_, from the
   // skinned positions and normals), then the weights (fold_weights_) from
   // the offsets (#V by 3).
