@@ -109,30 +109,25 @@ def test_volume_restore_option_reaches_the_tracking():
         isk.ImplicitSkinner(rig, device="reference", volume_restore=3.5)
 
 
-def test_skinned_ring_relaxation_option_reaches_the_tracking():
-    # The arm bent at 120 degrees: the relaxation as the paper writes it
-    # (skinned_ring_relaxation=False) gives other frames, on the reference
-    # and on OpenCL alike.
-    rig = isk.builtin_rig("arm")
-    pose = rig.bend_pose(120)
+def assert_option_changes_frames(rig_name, degrees, **option):
+    # Every joint of the builtin rig bent to `degrees`: the option gives
+    # other frames than the defaults, on the reference and on OpenCL alike.
+    rig = isk.builtin_rig(rig_name)
+    pose = rig.bend_pose(degrees)
     for device in ("reference", "opencl"):
         on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
-        off = isk.ImplicitSkinner(rig, device=device,
-                                  skinned_ring_relaxation=False).deform(pose)[0]
+        off = isk.ImplicitSkinner(rig, device=device, **option).deform(pose)[0]
         assert not np.array_equal(on, off), device
+
+
+def test_skinned_ring_relaxation_option_reaches_the_tracking():
+    # The relaxation as the paper writes it.
+    assert_option_changes_frames("arm", 120, skinned_ring_relaxation=False)
 
 
 def test_crease_gate_option_reaches_the_tracking():
-    # Every joint of the leg bent to 120 degrees: spreading every crease
-    # (crease_gate=False) gives other frames, on the reference and on
-    # OpenCL alike.
-    rig = isk.builtin_rig("leg")
-    pose = rig.bend_pose(120)
-    for device in ("reference", "opencl"):
-        on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
-        off = isk.ImplicitSkinner(rig, device=device,
-                                  crease_gate=False).deform(pose)[0]
-        assert not np.array_equal(on, off), device
+    # Every crease spread.
+    assert_option_changes_frames("leg", 120, crease_gate=False)
 
 
 def test_layers_option_reaches_the_fit():
