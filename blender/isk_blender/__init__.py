@@ -368,7 +368,7 @@ class IskSettings(bpy.types.PropertyGroup):
                     "march crushed, pushed or stretched out of their skinned "
                     "layout (off: every crease)")
     volume_restore: FloatProperty(
-        name="Volume restoration", default=1.0, min=0.0, max=3.0,
+        name="Volume restoration", default=2.0, min=0.0, max=3.0,
         description="The largest fraction of a vertex's inward move from "
                     "skinning given back where a closed part lost volume "
                     "(0: off)")

@@ -89,28 +89,62 @@ __kernel void track_restore_weights(
   chunk_weighted[k] = sum;
 }
 
+// A group's volume: the sum of its triangle chunks over 6.
+ISK_INLINE float group_volume(const uint g,
+                              __global const int* triangle_chunk_offsets,
+                              __global const float* chunk_volumes) {
+  float volume = 0.0f;
+  for (int k = triangle_chunk_offsets[g]; k < triangle_chunk_offsets[g + 1];
+       ++k)
+    volume += chunk_volumes[k];
+  return volume / 6.0f;
+}
+
 // Each group's fraction (volumeRestoreFraction): its missing volume (rest
-// less the sum of its triangle chunks over 6) over the sum of its vertex
+// less its volume, also written to `missing`) over the sum of its vertex
 // chunks, in [0, limit].
 __kernel void track_restore_fractions(
     const uint group_count, __global const int* triangle_chunk_offsets,
     __global const int* vertex_chunk_offsets,
     __global const float* chunk_volumes, __global const float* chunk_weighted,
     __global const float* rest_volumes, const float limit,
-    __global float* fractions) {
+    __global float* fractions, __global float* missing_volumes) {
   const uint g = get_global_id(0);
   if (g >= group_count) return;
-  float volume = 0.0f;
-  for (int k = triangle_chunk_offsets[g]; k < triangle_chunk_offsets[g + 1];
-       ++k)
-    volume += chunk_volumes[k];
   float weighted = 0.0f;
   for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k)
     weighted += chunk_weighted[k];
-  const float missing = rest_volumes[g] - volume / 6.0f;
+  const float missing =
+      rest_volumes[g] - group_volume(g, triangle_chunk_offsets, chunk_volumes);
+  missing_volumes[g] = missing;
   fractions[g] = weighted > 0.0f && missing > 0.0f
                      ? fmin(missing / weighted, limit)
                      : 0.0f;
+}
+
+// After the step, the secant step back of each group that went past its
+// rest volume (volumeRestoreCorrection): its volume now (chunk_volumes of
+// the stepped positions) less its volume before is what it gained; where
+// that exceeds what it missed, its fraction is scaled by missing / gained
+// and `back` receives the change (negative), 0 elsewhere.
+__kernel void track_restore_correct(const uint group_count,
+                                    __global const int* triangle_chunk_offsets,
+                                    __global const float* chunk_volumes,
+                                    __global const float* rest_volumes,
+                                    __global const float* missing_volumes,
+                                    __global float* fractions,
+                                    __global float* back) {
+  const uint g = get_global_id(0);
+  if (g >= group_count) return;
+  const float missing = missing_volumes[g];
+  const float fraction = fractions[g];
+  const float gained = group_volume(g, triangle_chunk_offsets, chunk_volumes) -
+                       (rest_volumes[g] - missing);
+  float corrected = fraction;
+  if (fraction > 0.0f && missing > 0.0f && gained > missing)
+    corrected = fraction * (missing / gained);
+  back[g] = corrected - fraction;
+  fractions[g] = corrected;
 }
 
 // The step (volumeRestoreStep): each weighted vertex moved out along its

@@ -109,6 +109,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   restore_weights_ = cl::Kernel(restore, "track_restore_weights");
   restore_fractions_ = cl::Kernel(restore, "track_restore_fractions");
   restore_apply_ = cl::Kernel(restore, "track_restore_apply");
+  restore_correct_ = cl::Kernel(restore, "track_restore_correct");
 }
 
 void ClSurfaceTracking::uploadLayout(
@@ -232,12 +233,15 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
       rw(std::max<size_t>(volume_vertex_chunks_count_, 1) * sizeof(float));
   volume_fractions_ =
       rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  volume_missing_ =
+      rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  volume_back_ = rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   context_->queue().enqueueFillBuffer(
       volume_fractions_, 0.0f, 0,
       std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   bytes_ += n * sizeof(float) + n * sizeof(float) +
             (static_cast<size_t>(volume_triangle_chunks_count_) +
-             volume_vertex_chunks_count_ + volume_group_count_ + 3) *
+             volume_vertex_chunks_count_ + 3 * volume_group_count_ + 5) *
                 sizeof(float);
   // 0 until the first check, and always without the guard (where they
   // still reach the steps, multiplied by 0).
@@ -679,6 +683,7 @@ void ClSurfaceTracking::restoreVolume() {
     restore_fractions_.setArg(5, volume_rest_);
     restore_fractions_.setArg(6, options_.volume_restore);
     restore_fractions_.setArg(7, volume_fractions_);
+    restore_fractions_.setArg(8, volume_missing_);
     launch(restore_fractions_, kVolume, volume_group_count_);
     restore_apply_.setArg(0, static_cast<cl_uint>(vertex_count_));
     restore_apply_.setArg(1, volume_groups_);
@@ -688,6 +693,18 @@ void ClSurfaceTracking::restoreVolume() {
     restore_apply_.setArg(5, begin_source_);
     restore_apply_.setArg(6, volume_signs_);
     restore_apply_.setArg(7, positions);
+    launch(restore_apply_, kVolume);
+    // The secant step back where a group went past its rest volume.
+    launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
+    restore_correct_.setArg(0, static_cast<cl_uint>(volume_group_count_));
+    restore_correct_.setArg(1, volume_triangle_chunk_offsets_);
+    restore_correct_.setArg(2, volume_chunk_sums_[0]);
+    restore_correct_.setArg(3, volume_rest_);
+    restore_correct_.setArg(4, volume_missing_);
+    restore_correct_.setArg(5, volume_fractions_);
+    restore_correct_.setArg(6, volume_back_);
+    launch(restore_correct_, kVolume, volume_group_count_);
+    restore_apply_.setArg(3, volume_back_);
     launch(restore_apply_, kVolume);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking::restoreVolume on " +

@@ -185,6 +185,17 @@ float volumeRestoreFraction(double missing, double weighted, float limit) {
   return static_cast<float>(std::min(missing / weighted, double{limit}));
 }
 
+// The fraction after the step, where the group gained more volume than it
+// missed (`gained`, measured after the step with `fraction`): the volume
+// grows faster than linearly with the step on a small or sharply curved
+// part, so the step is scaled by missing / gained (a secant step) and the
+// part is not pushed past its rest volume. Unchanged elsewhere.
+float volumeRestoreCorrection(double missing, double gained, float fraction) {
+  if (!(fraction > 0.f) || !(missing > 0.0) || !(gained > missing))
+    return fraction;
+  return static_cast<float>(fraction * (missing / gained));
+}
+
 // The step: `distance` out along the unit skinned normal (times its sign).
 Eigen::Vector3f volumeRestoreStep(const Eigen::Vector3f& x,
                                   const Eigen::Vector3f& skinned_normal,
@@ -1539,8 +1550,7 @@ void CpuSurfaceTracking::restoreVolume() {
     return;
   const auto start = std::chrono::steady_clock::now();
   // Each group's volume now, about its first corner.
-  std::vector<double> missing(group_count), weighted(group_count, 0.0);
-  for (int g = 0; g < group_count; ++g) {
+  auto groupVolume = [&](int g) {
     const int first = groups.triangle_offsets[g];
     const Eigen::Vector3f c0 =
         positions_.row(groups.corners[3 * static_cast<size_t>(first)])
@@ -1552,8 +1562,11 @@ void CpuSurfaceTracking::restoreVolume() {
                               positions_.row(c[1]).transpose(),
                               positions_.row(c[2]).transpose());
     }
-    missing[g] = groups.rest_volume[g] - volume / 6;
-  }
+    return volume / 6;
+  };
+  std::vector<double> missing(group_count), weighted(group_count, 0.0);
+  for (int g = 0; g < group_count; ++g)
+    missing[g] = groups.rest_volume[g] - groupVolume(g);
   // The inward moves outside contacts and creases, and their weighted sum.
   for (int v = 0; v < n; ++v) {
     const int g = groups.vertex_group[v];
@@ -1582,15 +1595,29 @@ void CpuSurfaceTracking::restoreVolume() {
   for (int g = 0; g < group_count; ++g)
     volume_fractions_[g] =
         volumeRestoreFraction(missing[g], weighted[g], options_.volume_restore);
-  for (int v = 0; v < n; ++v) {
-    const int g = groups.vertex_group[v];
-    if (g < 0 || !(restore_weights_[v] > 0.f)) continue;
-    positions_.row(v) =
-        volumeRestoreStep(
-            positions_.row(v).transpose(), fallback_normals_.row(v).transpose(),
-            groups.normal_sign[v], volume_fractions_[g] * restore_weights_[v])
-            .transpose();
+  auto step = [&](const std::vector<float>& fractions) {
+    for (int v = 0; v < n; ++v) {
+      const int g = groups.vertex_group[v];
+      if (g < 0 || !(restore_weights_[v] > 0.f)) continue;
+      positions_.row(v) =
+          volumeRestoreStep(positions_.row(v).transpose(),
+                            fallback_normals_.row(v).transpose(),
+                            groups.normal_sign[v],
+                            fractions[g] * restore_weights_[v])
+              .transpose();
+    }
+  };
+  step(volume_fractions_);
+  // The secant step back where a group went past its rest volume.
+  std::vector<float> back(group_count, 0.f);
+  for (int g = 0; g < group_count; ++g) {
+    const double gained = groupVolume(g) - (groups.rest_volume[g] - missing[g]);
+    const float corrected =
+        volumeRestoreCorrection(missing[g], gained, volume_fractions_[g]);
+    back[g] = corrected - volume_fractions_[g];
+    volume_fractions_[g] = corrected;
   }
+  step(back);
   times_.volume_ms += millisecondsSince(start);
 }
 

@@ -153,7 +153,8 @@ class ClSurfaceTracking {
       limit_strain_, strain_offsets_, strain_positions_, fold_frames_kernel_,
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
-      volume_chunks_, restore_weights_, restore_fractions_, restore_apply_;
+      volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
+      restore_correct_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, partners_, neighbour_offsets_,
@@ -212,14 +213,15 @@ class ClSurfaceTracking {
   cl::Buffer fold_corners_, fold_offsets_, fold_triangles_, fold_frames_,
       triangle_weights_, fold_weights_, fold_scratch_[2];
   // Volume restoration: the layout's volume rows (TrackingDeviceLayout),
-  // the chunks' sums, the groups' fractions and the vertices' weights.
+  // the chunks' sums, the groups' fractions, missing volumes and secant
+  // steps back, and the vertices' weights.
   int volume_group_count_ = 0, volume_triangle_chunks_count_ = 0,
       volume_vertex_chunks_count_ = 0;
   cl::Buffer volume_corners_, volume_origins_, volume_rest_, volume_vertices_,
       volume_triangle_chunks_, volume_triangle_chunk_offsets_,
       volume_vertex_chunks_, volume_vertex_chunk_offsets_, volume_groups_,
       volume_areas_, volume_signs_, volume_chunk_sums_[2], volume_fractions_,
-      restore_weights_buffer_;
+      volume_missing_, volume_back_, restore_weights_buffer_;
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;

@@ -92,7 +92,10 @@
 // contact's border), A a third of the rest area of the vertex's
 // triangles: the union's
 // notches on the outside of bends go back towards the skinning's surface
-// while the contacts stay. Components with holes (more than 1% of their
+// while the contacts stay. A component that the step took past its rest
+// volume (the volume grows faster than linearly on a small or sharply
+// curved part) is stepped back by the secant: lambda scaled by (V_rest -
+// V) over the volume it gained. Components with holes (more than 1% of their
 // vertices on a border) and meshes that enclose no volume are left alone.
 //
 // Contact by home field (home_contact, on by default; our addition, see
@@ -192,8 +195,9 @@ struct SurfaceTrackingOptions {
   // Volume restoration (see above): the largest fraction of a vertex's
   // inward move from its skinned position given back, in [0, 3] (0: off;
   // above 1 a vertex may go past its skinned position, outward, where the
-  // contacts took more volume than the inward moves hold).
-  float volume_restore = 1.f;
+  // contacts took more volume than the inward moves hold; docs/algorithm.md
+  // measures the default).
+  float volume_restore = 2.f;
   // Two fields joined by a blend are not other parts for the contact by
   // home field while their joint is turned by less than this from its bind
   // pose (degrees): the blend shapes a fold that turns by less into a
