@@ -1386,13 +1386,7 @@ void CpuSurfaceTracking::smooth() {
       Eigen::Vector3f tangential = Eigen::Vector3f::Zero();
       if (c > 0.f && rings.kinds[v] == RingKind::kClosed) {
         // The ring's area-weighted normal at the current positions.
-        Eigen::Vector3f normal = Eigen::Vector3f::Zero();
-        for (uint32_t i = begin; i < end; ++i) {
-          const uint32_t j = i + 1 < end ? i + 1 : begin;
-          normal +=
-              (positions_.row(rings.neighbours[i]).transpose() - x)
-                  .cross(positions_.row(rings.neighbours[j]).transpose() - x);
-        }
+        Eigen::Vector3f normal = ringArea(positions_, v);
         const float length = normal.norm();
         if (length > 0.f && std::isfinite(length)) {  // inf: no direction
           normal /= length;
