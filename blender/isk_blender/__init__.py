@@ -292,6 +292,7 @@ class ISK_OT_build(bpy.types.Operator):
             skinned_ring_relaxation=settings.skinned_ring_relaxation,
             crease_gate=settings.crease_gate,
             volume_restore=settings.volume_restore,
+            dislocation_guard=settings.dislocation_guard,
             base_skinning=settings.base_skinning, layers=settings.layers,
             cache_dir=cache_folder(settings), progress=progress)
 
@@ -367,6 +368,11 @@ class IskSettings(bpy.types.PropertyGroup):
         description="Spread only the creases between parts whose rings the "
                     "march crushed, pushed or stretched out of their skinned "
                     "layout (off: every crease)")
+    dislocation_guard: BoolProperty(
+        name="Dislocation guard", default=True,
+        description="Keep on skinning the skin blended between two joints "
+                    "the armature does not link, where the pose moves them "
+                    "apart (off: every vertex marches to its iso-surface)")
     volume_restore: FloatProperty(
         name="Volume restoration", default=2.0, min=0.0, max=3.0,
         description="The largest fraction of a vertex's inward move from "
@@ -428,6 +434,7 @@ class ISK_PT_panel(bpy.types.Panel):
             box.prop(settings, "relaxation")
             box.prop(settings, "skinned_ring_relaxation")
             box.prop(settings, "crease_gate")
+            box.prop(settings, "dislocation_guard")
             box.prop(settings, "volume_restore")
             box.prop(settings, "layers")
             layout.prop(settings, "cache_folder")

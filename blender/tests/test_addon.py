@@ -243,7 +243,8 @@ def check_panel(addon, obj):
     print(f"panel: {', '.join(items)}")
     for item in ("method", "operator", "joint_operators", "rounds", "sigma",
                  "contact_angle", "smoothing_steps", "relaxation",
-                 "skinned_ring_relaxation", "crease_gate", "volume_restore",
+                 "skinned_ring_relaxation", "crease_gate", "dislocation_guard",
+                 "volume_restore",
                  "layers",
                  "isk.build", "isk.remove",
                  f"Contacts: {obj.isk.contact_count}"):

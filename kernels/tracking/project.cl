@@ -326,6 +326,16 @@ __kernel void track_begin(const uint vertex_count,
   relax_frames[v] = (float4)(0.0f);
 }
 
+// The dislocation guard (isk/tracking/dislocation.hpp; the CPU reference's
+// begin): the vertices the host found dislocated by the pose (device
+// indices) keep their skinned position.
+__kernel void track_untrack(const uint count, __global const int* vertices,
+                            __global uchar* states) {
+  const uint i = get_global_id(0);
+  if (i >= count) return;
+  states[vertices[i]] = ISK_TRACK_UNTRACKED;
+}
+
 // The paper's steps, named as in the CPU reference (surface_tracking.cpp):
 // newton_step, contact_stop, march_to_contact; tangential_relaxation is in
 // tracking/relax.cl, smoothing_step in tracking/smooth.cl.

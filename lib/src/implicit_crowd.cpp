@@ -186,6 +186,12 @@ TrackingMesh concatenateTrackingMeshes(
       // Copy by copy, each in its own march order: by home field (copy
       // i's after copy i - 1's), then along the Morton curve.
       shift(m.march_order, v0, out.march_order);
+      for (DislocationCandidate candidate : m.dislocation_candidates) {
+        candidate.vertex += v0;
+        candidate.home_joint += joint0;
+        candidate.other_joint += joint0;
+        out.dislocation_candidates.push_back(candidate);
+      }
       // Volume restoration: each copy's groups, after the others'.
       TrackingMesh::VolumeGroups& groups = out.volume_groups;
       const int group0 = groups.groupCount();
@@ -329,7 +335,7 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context,
       if (count > std::numeric_limits<int>::max())
         invalid("ImplicitCrowd: " + std::to_string(count) + " " + what +
                 " in all are more than an int can index");
-    ones.push_back(TrackingMesh::build(rig.mesh, *ch.fields));
+    ones.push_back(detail::buildSkinnerTrackingMesh(rig, *ch.fields));
     tracking_parts.push_back({&ones.back(), ch.instances, character.joints});
     skinning_parts.push_back(
         {&rig.mesh, &rig.weights, ch.instances, character.joints});

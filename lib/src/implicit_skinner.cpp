@@ -50,7 +50,7 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
       std::move(context), rig.mesh, rig.weights, joints,
       std::vector<ClFieldEvaluation::FieldGroup>{
           {&fields_->grids, joints, &fields_->composition, 1}},
-      TrackingMesh::build(rig.mesh, *fields_), options);
+      detail::buildSkinnerTrackingMesh(rig, *fields_), options);
 }
 
 ImplicitSkinner::~ImplicitSkinner() = default;
@@ -121,7 +121,7 @@ CpuImplicitSkinner::CpuImplicitSkinner(
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
   rig.validate().throwIfFailed(rig.source);
   tracking_mesh_ = std::make_unique<const TrackingMesh>(
-      TrackingMesh::build(rig.mesh, *fields_));
+      detail::buildSkinnerTrackingMesh(rig, *fields_));
   skinning_ = std::make_unique<CpuSkinning>(rig.mesh, rig.weights,
                                             rig.skeleton.jointCount());
   tracking_ = std::make_unique<CpuSurfaceTracking>(

@@ -1,10 +1,11 @@
-// The fields a skinner builds for itself when it is given none
-// (ImplicitSkinner, CpuImplicitSkinner, ImplicitCrowd).
+// The fields a skinner builds for itself when it is given none, and its
+// tracking mesh (ImplicitSkinner, CpuImplicitSkinner, ImplicitCrowd).
 #pragma once
 
 #include <memory>
 
 #include "isk/implicit_skinner.hpp"
+#include "isk/tracking/dislocation.hpp"
 
 namespace isk::detail {
 
@@ -15,6 +16,16 @@ inline std::shared_ptr<const ImplicitFields> buildSkinnerFields(
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
   return std::make_shared<const ImplicitFields>(
       buildImplicitFields(rig, options.fields));
+}
+
+// TrackingMesh::build, with the dislocation guard's candidates from the
+// rig's weights.
+inline TrackingMesh buildSkinnerTrackingMesh(const Rig& rig,
+                                             const ImplicitFields& fields) {
+  TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
+  mesh.dislocation_candidates =
+      dislocationCandidates(rig, fields.partition, mesh.rings.representative);
+  return mesh;
 }
 
 }  // namespace isk::detail

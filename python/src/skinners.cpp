@@ -124,8 +124,8 @@ class PyImplicitSkinner {
       std::optional<int> smoothing_steps, std::optional<bool> relaxation,
       std::optional<bool> skinned_ring_relaxation,
       std::optional<bool> crease_gate, std::optional<float> volume_restore,
-      const std::string& base_skinning, bool layers,
-      std::optional<std::string> cache_dir, py::object progress)
+      std::optional<bool> dislocation_guard, const std::string& base_skinning,
+      bool layers, std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
@@ -158,6 +158,7 @@ class PyImplicitSkinner {
       tracking.skinned_ring_relaxation = *skinned_ring_relaxation;
     if (crease_gate) tracking.crease_gate = *crease_gate;
     if (volume_restore) tracking.volume_restore = *volume_restore;
+    if (dislocation_guard) tracking.dislocation_guard = *dislocation_guard;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
     if (cache_dir) {
@@ -341,8 +342,8 @@ void registerSkinners(py::module_& m) {
                std::optional<double>, std::optional<double>, std::optional<int>,
                std::optional<float>, std::optional<float>, std::optional<int>,
                std::optional<bool>, std::optional<bool>, std::optional<bool>,
-               std::optional<float>, const std::string&, bool,
-               std::optional<std::string>, py::object>(),
+               std::optional<float>, std::optional<bool>, const std::string&,
+               bool, std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
@@ -354,6 +355,7 @@ void registerSkinners(py::module_& m) {
            py::arg("skinned_ring_relaxation") = py::none(),
            py::arg("crease_gate") = py::none(),
            py::arg("volume_restore") = py::none(),
+           py::arg("dislocation_guard") = py::none(),
            py::arg("base_skinning") = "dqs", py::arg("layers") = true,
            py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))

@@ -130,6 +130,39 @@ def test_crease_gate_option_reaches_the_tracking():
     assert_option_changes_frames("leg", 120, crease_gate=False)
 
 
+def test_dislocation_guard_option_reaches_the_tracking():
+    # The builtin cylinder with its second joint made a root of its own (two
+    # chains under one skin), the first joint turned 30 degrees: the skin
+    # between the chains stays on skinning with the guard, not without; on
+    # the chain as built the guard never acts.
+    chain = isk.builtin_rig("cylinder")
+    indices, weights = chain.weight_arrays()
+    parents = chain.parents.copy()
+    parents[1] = -1
+    rig = isk.Rig.from_arrays(
+        positions=chain.rest_positions, triangles=chain.triangles,
+        parents=parents, inverse_bind_matrices=chain.inverse_bind_matrices,
+        weight_indices=indices, weights=weights)
+    pose = rig.bind_pose()
+    turn = np.radians(30.0)
+    pose[0, :3, :3] = [[np.cos(turn), -np.sin(turn), 0],
+                       [np.sin(turn), np.cos(turn), 0], [0, 0, 1]]
+    for device in ("reference", "opencl"):
+        dqs = isk.GeometricSkinner(rig, method="dqs",
+                                   device=device).deform(pose)[0]
+        on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
+        off = isk.ImplicitSkinner(rig, device=device,
+                                  dislocation_guard=False).deform(pose)[0]
+        kept = np.all(on == dqs, axis=1)
+        assert kept.any(), device
+        assert not np.all(off[kept] == dqs[kept]), device
+    chain_pose = chain.bend_pose(90)
+    assert np.array_equal(
+        isk.ImplicitSkinner(chain, device="reference").deform(chain_pose)[0],
+        isk.ImplicitSkinner(chain, device="reference",
+                            dislocation_guard=False).deform(chain_pose)[0])
+
+
 def test_layers_option_reaches_the_fit():
     # The sleeved arm's sleeve is a layer: fitted with the skin
     # (layers=False) the frames differ; the plain arm has none: the same

@@ -148,6 +148,10 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                    "implicit: spread every crease between parts (by default "
                    "only those whose rings the march crushed or pushed out "
                    "of their skinned layout)"),
+      app.add_flag("!--no-dislocation-guard", tracking.dislocation_guard,
+                   "implicit: track every vertex (by default the skin "
+                   "blended between two joints the skeleton does not link "
+                   "stays on skinning when the pose moves them apart)"),
       app.add_flag("!--no-relaxation", tracking.relaxation,
                    "implicit: no tangential relaxation (eq. 5, 6)"),
       app.add_flag("!--paper-relaxation", tracking.skinned_ring_relaxation,

@@ -116,6 +116,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"smoothing_steps", t.smoothing_steps},
           {"crease_steps", t.crease_steps},
           {"crease_gate", t.crease_gate},
+          {"dislocation_guard", t.dislocation_guard},
           {"volume_restore", t.volume_restore},
           {"strain_limit", t.strain_limit},
           {"strain_limit_steps", t.strain_limit_steps},

@@ -86,6 +86,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   cl::Program strain_limit = context_->program("tracking/strain_limit");
   cl::Program finish = context_->program("tracking/finish");
   begin_ = cl::Kernel(project, "track_begin");
+  untrack_ = cl::Kernel(project, "track_untrack");
   project_ = cl::Kernel(project, "track_project");
   relax_ = cl::Kernel(relax, "track_relax");
   beta_init_ = cl::Kernel(smooth, "track_beta_init");
@@ -116,6 +117,8 @@ void ClSurfaceTracking::uploadLayout(
     const detail::TrackingDeviceLayout& layout) {
   order_ = layout.order;
   march_count_ = layout.march_count;
+  device_index_.assign(order_.size(), -1);
+  for (size_t k = 0; k < order_.size(); ++k) device_index_[order_[k]] = k;
   iso_values_ = uploadReadOnly(*context_, layout.iso_values, &bytes_);
   representative_ = uploadReadOnly(*context_, layout.representative, &bytes_);
   finish_source_ = uploadReadOnly(*context_, layout.finish_source, &bytes_);
@@ -216,6 +219,13 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   for (auto& b : positions_) b = rw(floats3);
   normals_ = rw(floats3);
   states_ = rw(n);
+  const size_t candidates =
+      std::max<size_t>(mesh.dislocation_candidates.size(), 1);
+  dislocated_ = context_->createBuffer(
+      CL_MEM_READ_ONLY, candidates * sizeof(int), nullptr,
+      "ClSurfaceTracking: the dislocation guard's " +
+          std::to_string(candidates) + " candidates");
+  bytes_ += candidates * sizeof(int);
   prev_gradients_ = rw(n * 4 * sizeof(float));
   relax_frames_ = rw(n * 4 * sizeof(float));
   for (auto& b : beta_) b = rw(2 * n * sizeof(float));
@@ -482,6 +492,22 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     beta_current_ = 0;
     user_order_ = false;
     launch(begin_, kProjection);
+    if (options_.dislocation_guard) {
+      dislocated_staging_.clear();
+      for (const int v :
+           dislocatedVertices(mesh_->dislocation_candidates, skinning))
+        dislocated_staging_.push_back(device_index_[v]);
+      if (!dislocated_staging_.empty()) {
+        const cl_uint count = static_cast<cl_uint>(dislocated_staging_.size());
+        context_->queue().enqueueWriteBuffer(dislocated_, CL_FALSE, 0,
+                                             count * sizeof(int),
+                                             dislocated_staging_.data());
+        untrack_.setArg(0, count);
+        untrack_.setArg(1, dislocated_);
+        untrack_.setArg(2, states_);
+        launch(untrack_, kProjection, static_cast<int>(count));
+      }
+    }
     begun_ = true;
   } catch (const cl::Error& e) {
     throwClError(e,

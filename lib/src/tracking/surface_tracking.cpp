@@ -1117,6 +1117,10 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
     states_[v] = mesh_->iso_values[v] > 0 && mesh_->rings.representative[v] == v
                      ? TrackState::kMarching
                      : TrackState::kUntracked;
+  if (options_.dislocation_guard)
+    for (const int v :
+         dislocatedVertices(mesh_->dislocation_candidates, skinning))
+      states_[v] = TrackState::kUntracked;
   beta_.assign(2 * static_cast<size_t>(n), 0.f);
   crease_sources_.assign(n, 0.f);
   times_ = {};

@@ -154,7 +154,7 @@ class ClSurfaceTracking {
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
       volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
-      restore_correct_;
+      restore_correct_, untrack_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, partners_, neighbour_offsets_,
@@ -180,6 +180,13 @@ class ClSurfaceTracking {
   // tracked vertices in march order.
   std::vector<int> order_;
   int march_count_ = 0;
+  // The dislocation guard: each mesh vertex's device index (the inverse of
+  // order_), and the device indices of the vertices the pose dislocates
+  // (staging read by a non-blocking write; buffer sized for every
+  // candidate).
+  std::vector<int> device_index_;
+  std::vector<int> dislocated_staging_;
+  cl::Buffer dislocated_;
   cl::Buffer begin_source_, finish_source_;  // order_; slot of representative
   bool user_order_ = false;  // positions_[current_] in the mesh's order
   // Rows in the mesh's order <-> rows in the device's order.

@@ -118,6 +118,11 @@
 // rest margin ends in a crease between parts (a concave union edge, where the
 // march piles vertices from both sides): it is marked kCrease and smoothed
 // tangentially.
+// Dislocation guard (dislocation_guard, on by default; our addition, see
+// isk/tracking/dislocation.hpp and docs/algorithm.md): at the start of a
+// frame, the vertices whose weights blend two joints the skeleton does not
+// link, and whose relative motion the pose makes a turn about a far axis or
+// a slide, are left untracked: they keep their skinned position.
 // Duplicates (seam copies, see one_ring.hpp) copy their representative's
 // result; normals are area-weighted over the welded mesh where the rest
 // normals agree (so seams do not show and hard edges stay hard).
@@ -140,6 +145,7 @@
 #include "isk/fields/field_evaluation.hpp"
 #include "isk/fields/field_grid.hpp"
 #include "isk/fields/implicit_fields.hpp"
+#include "isk/tracking/dislocation.hpp"
 
 namespace isk {
 
@@ -217,6 +223,9 @@ struct SurfaceTrackingOptions {
   // The crease gate (see above); false: every crease vertex is a source of
   // gamma = 1.
   bool crease_gate = true;
+  // The dislocation guard (see above); false: every vertex with an iso
+  // value marches.
+  bool dislocation_guard = true;
   // The strain limit (see above): the largest difference of two neighbours'
   // offsets from skinning, as a fraction of their rest distance, and the
   // Jacobi steps that enforce it (0: no limit).
@@ -296,6 +305,10 @@ struct TrackingMesh {
   // projection kernel marches them: by home field, then along a Morton
   // curve of the rest positions (locality of the grid samples).
   std::vector<int> march_order;
+  // The dislocation guard's candidates (isk/tracking/dislocation.hpp),
+  // sorted by vertex; empty: no vertex is ever left untracked by it. Not
+  // filled by build (it needs the rig's weights): the skinners set it.
+  std::vector<DislocationCandidate> dislocation_candidates;
 
   // Volume restoration's groups (see above): the closed connected
   // components of the welded mesh that enclose a volume.
