@@ -13,6 +13,7 @@
 
 #include "isk/core/error.hpp"
 #include "isk/fields/bone_partition.hpp"
+#include "isk/implicit_crowd.hpp"
 #include "isk/implicit_skinner.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/skinning/cpu_skinning.hpp"
@@ -231,6 +232,59 @@ TEST(DislocationGuard, OpenClFramesMatchTheReference) {
             (positions.row(v) - cpu.positions().row(v)).norm() > tolerance;
       EXPECT_LE(beyond, 0.01 * positions.rows());
     }
+  }
+}
+
+// A crowd offsets each instance's candidates by its first vertex and joint:
+// a chain first, then two instances of the two-chain tube, each frame as
+// the tube's own skinner's.
+TEST(DislocationGuard, CrowdInstancesMatchTheirOwnSkinner) {
+  const test::RigWithFields chain =
+      test::withDefaultFields(makeCylinderRig(longCylinder()));
+  const test::RigWithFields tube = test::withDefaultFields(twoChainTube());
+  const auto context = test::sharedContext();
+  ImplicitCrowd crowd(
+      context, {{&chain.rig, chain.fields, 1}, {&tube.rig, tube.fields, 2}});
+  // The chain has none; each tube instance has the tube's, shifted to the
+  // instance's vertices and joints.
+  const std::vector<DislocationCandidate> own = candidatesOf(tube.rig);
+  const std::vector<DislocationCandidate>& all =
+      crowd.trackingMesh().dislocation_candidates;
+  ASSERT_EQ(all.size(), 2 * own.size());
+  for (int i = 1; i < 3; ++i)
+    for (size_t k = 0; k < own.size(); ++k) {
+      const DislocationCandidate& c = all[(i - 1) * own.size() + k];
+      EXPECT_EQ(c.vertex, own[k].vertex + crowd.instanceFirstVertex(i));
+      EXPECT_EQ(c.home_joint, own[k].home_joint + crowd.instanceFirstJoint(i));
+      EXPECT_EQ(c.other_joint,
+                own[k].other_joint + crowd.instanceFirstJoint(i));
+    }
+  const float spacing = 3.f * tube.rig.boundingBoxDiagonal();
+  auto placed = [&](TransformList pose, int instance) {
+    for (Eigen::Affine3f& t : pose)
+      t = Eigen::Translation3f(spacing * instance, 0.f, 0.f) * t;
+    return pose;
+  };
+  const std::vector<TransformList> poses = {
+      placed(test::clipPoses(chain.rig, 2)[1], 0),
+      placed(turnSecond(tube.rig, 30.f), 1),
+      placed(turnSecond(tube.rig, 45.f), 2)};
+  crowd.run(poses);
+  Matrix3Xf positions, alone_positions;
+  crowd.readPositions(positions);
+  const float tolerance =
+      (context->info().is_gpu ? 2e-2f : 5e-4f) * tube.rig.boundingBoxDiagonal();
+  for (int i = 1; i < 3; ++i) {
+    SCOPED_TRACE("instance " + std::to_string(i));
+    ImplicitSkinner alone(context, tube.rig, tube.fields);
+    alone.run(poses[i]);
+    alone.readPositions(alone_positions);
+    const int first = crowd.instanceFirstVertex(i);
+    int beyond = 0;
+    for (int v = 0; v < alone_positions.rows(); ++v)
+      beyond += (positions.row(first + v) - alone_positions.row(v)).norm() >
+                tolerance;
+    EXPECT_LE(beyond, 0.01 * alone_positions.rows());
   }
 }
 
