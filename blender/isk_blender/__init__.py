@@ -374,10 +374,10 @@ class IskSettings(bpy.types.PropertyGroup):
                     "the armature does not link, where the pose moves them "
                     "apart (off: every vertex marches to its iso-surface)")
     volume_restore: FloatProperty(
-        name="Volume restoration", default=2.0, min=0.0, max=3.0,
+        name="Volume restoration", default=3.0, min=0.0, max=3.0,
         description="The largest fraction of a vertex's inward move from "
                     "skinning given back where a closed part lost volume "
-                    "(0: off)")
+                    "(0: off; at most 2 near another piece of the mesh)")
     layers: BoolProperty(
         name="Clothes layers", default=True,
         description="Leave layers of clothes (meshes that wrap a bone "

@@ -3,7 +3,8 @@
 // volume moves the vertices tracking moved inward from their skinned
 // position back out along the skinned normal, by one fraction per component.
 // OpenCL C 1.2. CPU reference: CpuSurfaceTracking::restoreVolume and
-// volumeRestoreWeight / volumeRestoreFraction / volumeRestoreStep
+// volumeRestoreWeight / volumeRestoreFraction / volumeRestoreLimit /
+// volumeRestoreDistance / volumeRestoreBackFactor / volumeRestoreStep
 // (lib/src/tracking/surface_tracking.cpp); the groups are
 // TrackingMesh::VolumeGroups.
 //
@@ -127,13 +128,11 @@ __kernel void track_restore_fractions(
 // the stepped positions) less its volume before is what it gained; where
 // that exceeds what it missed, its fraction is scaled by missing / gained
 // and `back` receives the change (negative), 0 elsewhere.
-__kernel void track_restore_correct(const uint group_count,
-                                    __global const int* triangle_chunk_offsets,
-                                    __global const float* chunk_volumes,
-                                    __global const float* rest_volumes,
-                                    __global const float* missing_volumes,
-                                    __global float* fractions,
-                                    __global float* back) {
+__kernel void track_restore_correct(
+    const uint group_count, __global const int* triangle_chunk_offsets,
+    __global const float* chunk_volumes, __global const float* rest_volumes,
+    __global const float* missing_volumes, __global float* fractions,
+    __global float* previous, __global float* back) {
   const uint g = get_global_id(0);
   if (g >= group_count) return;
   const float missing = missing_volumes[g];
@@ -143,26 +142,36 @@ __kernel void track_restore_correct(const uint group_count,
   float corrected = fraction;
   if (fraction > 0.0f && missing > 0.0f && gained > missing)
     corrected = fraction * (missing / gained);
-  back[g] = corrected - fraction;
+  previous[g] = fraction;
   fractions[g] = corrected;
+  back[g] = fraction > 0.0f ? corrected / fraction - 1.0f : 0.0f;
 }
 
-// The step (volumeRestoreStep): each weighted vertex moved out along its
-// unit skinned normal (times its sign: outward) by its group's fraction of
-// its weight.
+// The step (volumeRestoreStep, volumeRestoreDistance): each weighted vertex
+// moved out along its unit skinned normal (times its sign: outward) by its
+// weight times its group's fraction, capped at the vertex's limit
+// (volumeRestoreLimit: volume_restore, at most ISK_VOLUME_NEAR_LIMIT near
+// another component of the mesh), times its group's factor (1, then the
+// secant step back's, volumeRestoreBackFactor).
 __kernel void track_restore_apply(
     const uint vertex_count, __global const int* groups,
     __global const float* weights, __global const float* fractions,
-    __global const float* skinned_normals, __global const int* source,
-    __global const float* signs, __global float* positions) {
+    __global const float* factors, __global const uchar* near_other,
+    const float volume_restore, __global const float* skinned_normals,
+    __global const int* source, __global const float* signs,
+    __global float* positions) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   const int g = groups[v];
   if (g < 0) return;
   const float w = weights[v];
   if (!(w > 0.0f)) return;
+  const float limit = near_other[v]
+                          ? fmin(volume_restore, ISK_VOLUME_NEAR_LIMIT)
+                          : volume_restore;
+  const float distance = fmin(fractions[g], limit) * factors[g] * w;
   const float3 n = vload3(source[v], skinned_normals);
   const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-  vstore3(vload3(v, positions) + (signs[v] * fractions[g] * w / length) * n, v,
+  vstore3(vload3(v, positions) + (signs[v] * distance / length) * n, v,
           positions);
 }

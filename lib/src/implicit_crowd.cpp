@@ -215,6 +215,12 @@ TrackingMesh concatenateTrackingMeshes(
         groups.vertex_area.insert(groups.vertex_area.end(), v, 0.f);
         groups.normal_sign.insert(groups.normal_sign.end(), v, 1.f);
       }
+      // Near another component of its own copy (the copies' rest poses may
+      // overlap: that is the crowd's contact, not a piece of the character).
+      if (static_cast<int>(m.volume_groups.near_other.size()) == v)
+        append(m.volume_groups.near_other, groups.near_other);
+      else
+        groups.near_other.insert(groups.near_other.end(), v, 0);
       v0 += v;
       field0 += m.field_count;
       joint0 += c.joints_per_copy;

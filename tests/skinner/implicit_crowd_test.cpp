@@ -226,6 +226,26 @@ TEST(ImplicitCrowd, ReplicatedTrackingMeshShiftsEveryIndex) {
   EXPECT_THROW(replicateTrackingMesh(one, 0, joints), Error);
 }
 
+// The volume restoration's near flags (VolumeGroups::near_other: the
+// sleeved arm's skin and sleeve are near each other) follow each copy.
+TEST(ImplicitCrowd, ReplicatedTrackingMeshKeepsEachCopysNearFlags) {
+  const Rig& arm = test::rigNamed("sleeved-arm");
+  const TrackingMesh one =
+      TrackingMesh::build(arm.mesh, test::implicitFieldsOf("sleeved-arm"));
+  const TrackingMesh two =
+      replicateTrackingMesh(one, 2, arm.skeleton.jointCount());
+  const int v = one.vertexCount();
+  const std::vector<uint8_t>& a = one.volume_groups.near_other;
+  const std::vector<uint8_t>& b = two.volume_groups.near_other;
+  ASSERT_EQ(static_cast<int>(a.size()), v);
+  ASSERT_EQ(static_cast<int>(b.size()), 2 * v);
+  EXPECT_GT(std::count(a.begin(), a.end(), uint8_t{1}), 0);
+  for (int u = 0; u < v; ++u) {
+    ASSERT_EQ(b[u], a[u]) << "vertex " << u;
+    ASSERT_EQ(b[v + u], a[u]) << "vertex " << u;
+  }
+}
+
 TEST(ImplicitCrowd, OverlappingInstancesStopAtEachOther) {
   // Two cylinders side by side, their surfaces overlapping by half a
   // radius: skinned alone, each passes through the other; in one crowd the

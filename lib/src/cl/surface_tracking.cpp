@@ -163,6 +163,7 @@ void ClSurfaceTracking::uploadLayout(
   volume_groups_ = uploadReadOnly(*context_, layout.volume_groups, &bytes_);
   volume_areas_ = uploadReadOnly(*context_, layout.volume_areas, &bytes_);
   volume_signs_ = uploadReadOnly(*context_, layout.volume_signs, &bytes_);
+  volume_near_ = uploadReadOnly(*context_, layout.volume_near, &bytes_);
 }
 
 void ClSurfaceTracking::allocateBroadPhase(const TrackingMesh& mesh) {
@@ -245,7 +246,13 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
       rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   volume_missing_ =
       rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  volume_previous_ =
+      rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   volume_back_ = rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  volume_ones_ = rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  context_->queue().enqueueFillBuffer(
+      volume_ones_, 1.0f, 0,
+      std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   context_->queue().enqueueFillBuffer(
       volume_fractions_, 0.0f, 0,
       std::max<size_t>(volume_group_count_, 1) * sizeof(float));
@@ -715,10 +722,13 @@ void ClSurfaceTracking::restoreVolume() {
     restore_apply_.setArg(1, volume_groups_);
     restore_apply_.setArg(2, restore_weights_buffer_);
     restore_apply_.setArg(3, volume_fractions_);
-    restore_apply_.setArg(4, fallback_normals_);
-    restore_apply_.setArg(5, begin_source_);
-    restore_apply_.setArg(6, volume_signs_);
-    restore_apply_.setArg(7, positions);
+    restore_apply_.setArg(4, volume_ones_);
+    restore_apply_.setArg(5, volume_near_);
+    restore_apply_.setArg(6, options_.volume_restore);
+    restore_apply_.setArg(7, fallback_normals_);
+    restore_apply_.setArg(8, begin_source_);
+    restore_apply_.setArg(9, volume_signs_);
+    restore_apply_.setArg(10, positions);
     launch(restore_apply_, kVolume);
     // The secant step back where a group went past its rest volume.
     launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
@@ -728,9 +738,11 @@ void ClSurfaceTracking::restoreVolume() {
     restore_correct_.setArg(3, volume_rest_);
     restore_correct_.setArg(4, volume_missing_);
     restore_correct_.setArg(5, volume_fractions_);
-    restore_correct_.setArg(6, volume_back_);
+    restore_correct_.setArg(6, volume_previous_);
+    restore_correct_.setArg(7, volume_back_);
     launch(restore_correct_, kVolume, volume_group_count_);
-    restore_apply_.setArg(3, volume_back_);
+    restore_apply_.setArg(3, volume_previous_);
+    restore_apply_.setArg(4, volume_back_);
     launch(restore_apply_, kVolume);
   } catch (const cl::Error& e) {
     throwClError(e, "ClSurfaceTracking::restoreVolume on " +

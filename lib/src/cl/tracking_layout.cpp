@@ -169,6 +169,10 @@ void volumeRows(const TrackingMesh& mesh, TrackingDeviceLayout* out) {
   out->volume_groups.assign(n, -1);
   out->volume_areas.assign(n, 0.f);
   out->volume_signs.assign(n, 1.f);
+  out->volume_near.assign(n, 0);
+  if (static_cast<int>(groups.near_other.size()) == n)
+    for (int k = 0; k < n; ++k)
+      out->volume_near[k] = groups.near_other[out->order[k]];
   std::vector<int> vertex_offsets(groups.groupCount() + 1, 0);
   for (int k = 0; k < n; ++k) {
     const int v = out->order[k];

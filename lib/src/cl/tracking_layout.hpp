@@ -70,6 +70,7 @@ struct TrackingDeviceLayout {
   std::vector<int> volume_vertex_chunks, volume_vertex_chunk_offsets;
   std::vector<int> volume_groups;
   std::vector<float> volume_areas, volume_signs;
+  std::vector<uint8_t> volume_near;  // VolumeGroups::near_other
 };
 
 // The tuning's march_order off keeps the tracked vertices by index instead

@@ -23,6 +23,9 @@ namespace {
 
 // Rest normals closer than this share a smoothed normal across a seam.
 constexpr float kSameNormalCos = 0.99f;
+// VolumeGroups::near_other: how near (fraction of the rest diagonal)
+// another component's vertex makes a vertex near it.
+constexpr float kVolumeNearReach = 0.02f;
 
 // The paper's steps, named as in the kernels (kernels/tracking/):
 // newtonStep, contactStop, marchToContact, tangentialRelaxation,
@@ -194,6 +197,27 @@ float volumeRestoreCorrection(double missing, double gained, float fraction) {
   if (!(fraction > 0.f) || !(missing > 0.0) || !(gained > missing))
     return fraction;
   return static_cast<float>(fraction * (missing / gained));
+}
+
+// A vertex's limit L: volume_restore, at most ISK_VOLUME_NEAR_LIMIT near
+// another component of the mesh.
+float volumeRestoreLimit(bool near_other, float volume_restore) {
+  return near_other ? std::min(volume_restore, ISK_VOLUME_NEAR_LIMIT)
+                    : volume_restore;
+}
+
+// How far a vertex of weight w moves for its group's fraction (capped at
+// the vertex's limit) times `factor`: 1 for the step, then the secant's
+// corrected / fraction - 1 for the step back, so that the step back scales
+// every vertex's move alike, capped or not.
+float volumeRestoreDistance(float fraction, float factor, float limit,
+                            float weight) {
+  return std::min(fraction, limit) * factor * weight;
+}
+
+// The secant step back's factor (see volumeRestoreDistance).
+float volumeRestoreBackFactor(float fraction, float corrected) {
+  return fraction > 0.f ? corrected / fraction - 1.f : 0.f;
 }
 
 // The step: `distance` out along the unit skinned normal (times its sign).
@@ -565,6 +589,52 @@ double tripleProduct(const Eigen::Vector3f& c0, const Eigen::Vector3f& a,
   return p.dot(q.cross(r));
 }
 
+// TrackingMesh::VolumeGroups::near_other: per vertex, whether a
+// representative of another connected component (`root` of the welded
+// union-find, with at least one triangle) lies within kVolumeNearReach of
+// the rest diagonal. Cells of that size, each vertex testing its 27.
+template <typename Root>
+std::vector<uint8_t> nearOtherComponent(const Mesh& mesh,
+                                        const std::vector<int>& rep, Root root,
+                                        const std::vector<int>& triangles) {
+  const int n = mesh.vertexCount();
+  std::vector<uint8_t> near(n, 0);
+  Eigen::AlignedBox3f box;
+  for (int v = 0; v < n; ++v) box.extend(mesh.positions.row(v).transpose());
+  const float reach = kVolumeNearReach * box.diagonal().norm();
+  if (!(reach > 0.f)) return near;
+  auto cell = [&](int v) -> Eigen::Vector3i {
+    return ((mesh.positions.row(v).transpose() - box.min()) / reach)
+        .array()
+        .floor()
+        .cast<int>();
+  };
+  std::map<std::array<int, 3>, std::vector<int>> cells;
+  for (int v = 0; v < n; ++v)
+    if (rep[v] == v && triangles[root(v)] > 0) {
+      const Eigen::Vector3i c = cell(v);
+      cells[{c.x(), c.y(), c.z()}].push_back(v);
+    }
+  for (auto& [key, members] : cells)
+    for (const int v : members) {
+      const int own = root(v);
+      const Eigen::Vector3f x = mesh.positions.row(v).transpose();
+      for (int d = 0; d < 27 && !near[v]; ++d) {
+        const auto other = cells.find(
+            {key[0] + d % 3 - 1, key[1] + d / 3 % 3 - 1, key[2] + d / 9 - 1});
+        if (other == cells.end()) continue;
+        for (const int u : other->second)
+          if (root(u) != own &&
+              (mesh.positions.row(u).transpose() - x).norm() <= reach) {
+            near[v] = 1;
+            break;
+          }
+      }
+    }
+  for (int v = 0; v < n; ++v) near[v] = near[rep[v]];
+  return near;
+}
+
 // The volume restoration's groups (TrackingMesh::VolumeGroups): the welded
 // mesh's connected components with at most 1% of their vertices on a border
 // and a rest volume above 1e-6 of their size cubed.
@@ -655,6 +725,7 @@ TrackingMesh::VolumeGroups volumeGroups(const Mesh& mesh, const OneRings& rings,
     if (out.vertex_group[v] >= 0 &&
         outward[v].dot(mesh.normals.row(v).transpose()) < 0.f)
       out.normal_sign[v] = -1.f;
+  out.near_other = nearOtherComponent(mesh, rep, find, triangles);
   // Parts dressed in layers of clothes are left alone: the layers follow
   // the field, and moving the skin out alone would push it through them.
   const std::vector<uint8_t>& layers = partition.vertex_layer;
@@ -1593,29 +1664,34 @@ void CpuSurfaceTracking::restoreVolume() {
   for (int g = 0; g < group_count; ++g)
     volume_fractions_[g] =
         volumeRestoreFraction(missing[g], weighted[g], options_.volume_restore);
-  auto step = [&](const std::vector<float>& fractions) {
+  const bool near_rows = static_cast<int>(groups.near_other.size()) == n;
+  auto step = [&](const std::vector<float>& fractions,
+                  const std::vector<float>& factors) {
     for (int v = 0; v < n; ++v) {
       const int g = groups.vertex_group[v];
       if (g < 0 || !(restore_weights_[v] > 0.f)) continue;
+      const float limit = volumeRestoreLimit(near_rows && groups.near_other[v],
+                                             options_.volume_restore);
       positions_.row(v) =
           volumeRestoreStep(positions_.row(v).transpose(),
                             fallback_normals_.row(v).transpose(),
                             groups.normal_sign[v],
-                            fractions[g] * restore_weights_[v])
+                            volumeRestoreDistance(fractions[g], factors[g],
+                                                  limit, restore_weights_[v]))
               .transpose();
     }
   };
-  step(volume_fractions_);
+  const std::vector<float> first = volume_fractions_;
+  step(first, std::vector<float>(group_count, 1.f));
   // The secant step back where a group went past its rest volume.
   std::vector<float> back(group_count, 0.f);
   for (int g = 0; g < group_count; ++g) {
     const double gained = groupVolume(g) - (groups.rest_volume[g] - missing[g]);
-    const float corrected =
-        volumeRestoreCorrection(missing[g], gained, volume_fractions_[g]);
-    back[g] = corrected - volume_fractions_[g];
-    volume_fractions_[g] = corrected;
+    volume_fractions_[g] =
+        volumeRestoreCorrection(missing[g], gained, first[g]);
+    back[g] = volumeRestoreBackFactor(first[g], volume_fractions_[g]);
   }
-  step(back);
+  step(first, back);
   times_.volume_ms += millisecondsSince(start);
 }
 

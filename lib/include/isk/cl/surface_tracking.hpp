@@ -227,8 +227,9 @@ class ClSurfaceTracking {
   cl::Buffer volume_corners_, volume_origins_, volume_rest_, volume_vertices_,
       volume_triangle_chunks_, volume_triangle_chunk_offsets_,
       volume_vertex_chunks_, volume_vertex_chunk_offsets_, volume_groups_,
-      volume_areas_, volume_signs_, volume_chunk_sums_[2], volume_fractions_,
-      volume_missing_, volume_back_, restore_weights_buffer_;
+      volume_areas_, volume_signs_, volume_near_, volume_chunk_sums_[2],
+      volume_fractions_, volume_missing_, volume_previous_, volume_back_,
+      volume_ones_, restore_weights_buffer_;
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;

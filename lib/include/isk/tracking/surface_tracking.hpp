@@ -86,11 +86,14 @@
 // 0) and outside parts dressed in clothes' layers, are moved back out along
 // n by a common fraction lambda of their inward move, weighted by
 // (1 - gamma):
-//   x <- x + lambda w n,  w = max(0, -(x - s).n) (1 - gamma) m,
+//   x <- x + min(lambda, L) w n,  w = max(0, -(x - s).n) (1 - gamma) m,
 //   lambda = clamp((V_rest - V) / sum(w A), 0, volume_restore),
 // m the share of the vertex's one-ring that moves too (no shear against a
 // contact's border), A a third of the rest area of the vertex's
-// triangles: the union's
+// triangles, L the vertex's limit: volume_restore, or at most
+// ISK_VOLUME_NEAR_LIMIT (2) near another connected component of the mesh
+// (VolumeGroups::near_other: eyes, teeth, a mannequin's other pieces),
+// where skin pushed out past skinning would press into it. The union's
 // notches on the outside of bends go back towards the skinning's surface
 // while the contacts stay. A component that the step took past its rest
 // volume (the volume grows faster than linearly on a small or sharply
@@ -201,9 +204,10 @@ struct SurfaceTrackingOptions {
   // Volume restoration (see above): the largest fraction of a vertex's
   // inward move from its skinned position given back, in [0, 3] (0: off;
   // above 1 a vertex may go past its skinned position, outward, where the
-  // contacts took more volume than the inward moves hold; docs/algorithm.md
-  // measures the default).
-  float volume_restore = 2.f;
+  // contacts took more volume than the inward moves hold; at most
+  // ISK_VOLUME_NEAR_LIMIT near another component of the mesh;
+  // docs/algorithm.md measures the default).
+  float volume_restore = 3.f;
   // Two fields joined by a blend are not other parts for the contact by
   // home field while their joint is turned by less than this from its bind
   // pose (degrees): the blend shapes a fold that turns by less into a
@@ -329,6 +333,10 @@ struct TrackingMesh {
     // side its triangles are wound to), -1 where it points in (normals
     // of a mesh wound inside out, or flipped): n times it is outward.
     std::vector<float> normal_sign;
+    // #V: 1 where a vertex of another connected component of the welded
+    // mesh (one with triangles) lies within 2% of the rest bounding-box
+    // diagonal: its restoration is limited to ISK_VOLUME_NEAR_LIMIT.
+    std::vector<uint8_t> near_other;
     int groupCount() const { return static_cast<int>(rest_volume.size()); }
   };
   VolumeGroups volume_groups;
