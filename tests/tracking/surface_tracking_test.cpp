@@ -1229,7 +1229,7 @@ TEST(SurfaceTracking, CreaseGateStrainsTheSkinLessOnProceduralRigs) {
   // Every joint of the leg bent to 120 degrees and the knee to 150: on its
   // regular rings the uniform centroid is the vertex, so spreading every
   // crease strains the skin no more (the gate leaves up to a tenth more
-  // mean strain, measured 7%), and the gate keeps the march's spike at the
+  // mean strain, measured 9%), and the gate keeps the march's spike at the
   // fold from being spread (ungated: 1.8 where DQS's largest is 1.35).
   const Rig& leg = test::rigNamed("leg");
   const AnimationClip bend =
