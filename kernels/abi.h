@@ -46,9 +46,10 @@
 #define ISK_VOLUME_CHUNK 256
 // The largest fraction of its inward move given back to a vertex near
 // another connected component of the welded mesh
-// (TrackingMesh::VolumeGroups::near_other), whatever volume_restore is:
-// pushed out past its skinned position there, the skin presses into it.
-#define ISK_VOLUME_NEAR_LIMIT 2.0f
+// (TrackingMesh::VolumeGroups::near_other), whatever volume_restore is: 1,
+// back to its skinned position at most (pushed out past it there, the skin
+// presses into the other piece).
+#define ISK_VOLUME_NEAR_LIMIT 1.0f
 // Lane tests on a CPU device: fields tested eight at a time, each chunk
 // ISK_LANE_ROWS rows of ISK_LANE_WIDTH floats.
 #define ISK_LANE_WIDTH 8

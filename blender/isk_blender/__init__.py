@@ -377,7 +377,8 @@ class IskSettings(bpy.types.PropertyGroup):
         name="Volume restoration", default=3.0, min=0.0, max=3.0,
         description="The largest fraction of a vertex's inward move from "
                     "skinning given back where a closed part lost volume "
-                    "(0: off; at most 2 near another piece of the mesh)")
+                    "(0: off; near another piece of the mesh, back to skinning "
+                    "at most)")
     layers: BoolProperty(
         name="Clothes layers", default=True,
         description="Leave layers of clothes (meshes that wrap a bone "

@@ -187,7 +187,7 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "implicit: the largest fraction of a vertex's inward "
                      "move from skinning given back where a closed part "
                      "lost volume, [0, 3] (0: off; above 1 the skin is pushed "
-                     "past skinning's surface there; at most 2 near another "
+                     "past skinning's surface there, but not near another "
                      "piece of the mesh)")
           ->check(CLI::Range(0.0, 3.0))
           ->capture_default_str(),

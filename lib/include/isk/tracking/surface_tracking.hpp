@@ -91,7 +91,7 @@
 // m the share of the vertex's one-ring that moves too (no shear against a
 // contact's border), A a third of the rest area of the vertex's
 // triangles, L the vertex's limit: volume_restore, or at most
-// ISK_VOLUME_NEAR_LIMIT (2) near another connected component of the mesh
+// ISK_VOLUME_NEAR_LIMIT (1) near another connected component of the mesh
 // (VolumeGroups::near_other: eyes, teeth, a mannequin's other pieces),
 // where skin pushed out past skinning would press into it. The union's
 // notches on the outside of bends go back towards the skinning's surface
