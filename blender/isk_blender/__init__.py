@@ -20,6 +20,7 @@ bl_info = {
     "category": "Animation",
 }
 
+import fnmatch
 import os
 import sys
 import tempfile
@@ -86,6 +87,21 @@ def parse_joint_operators(text):
             raise ValueError(f"joint operators: '{item}' is not "
                              "joint=union|blend|bulge")
         out[name] = op
+    return out
+
+
+def parse_untracked_joints(text, names):
+    """'wing*, tail_?' -> the bone names the patterns match (fnmatch,
+    case-sensitive); a pattern matching no bone is an error."""
+    out = []
+    for pattern in text.split(","):
+        pattern = pattern.strip()
+        if not pattern:
+            continue
+        matched = fnmatch.filter(names, pattern)
+        if not matched:
+            raise ValueError(f"untracked bones: '{pattern}' matches no bone")
+        out += [n for n in matched if n not in out]
     return out
 
 
@@ -284,6 +300,8 @@ class ISK_OT_build(bpy.types.Operator):
         return isk.ImplicitSkinner(
             rig, device=settings.device, operator=settings.operator,
             joint_operators=parse_joint_operators(settings.joint_operators),
+            untracked_joints=parse_untracked_joints(settings.untracked_joints,
+                                                    rig.joint_names),
             bulge_strength=settings.bulge_strength,
             rounds=settings.rounds, sigma=settings.sigma,
             contact_angle=settings.contact_angle,
@@ -337,6 +355,11 @@ class IskSettings(bpy.types.PropertyGroup):
         name="Per joint",
         description="Operators of some joints: joint=op, joint=op "
                     "(op: union, blend, bulge)")
+    untracked_joints: StringProperty(
+        name="Untracked bones",
+        description="Bones whose parts stay where skinning puts them, as "
+                    "patterns: wing*, tail_? (parts too thin for their "
+                    "fields, such as wing membranes)")
     base_skinning: EnumProperty(
         name="Base", default='dqs',
         description="The geometric skinning the tracking starts from",
@@ -424,6 +447,7 @@ class ISK_PT_panel(bpy.types.Panel):
         if settings.method == 'implicit':
             layout.prop(settings, "operator")
             layout.prop(settings, "joint_operators")
+            layout.prop(settings, "untracked_joints")
             layout.prop(settings, "bulge_strength")
             box = layout.box()
             box.label(text="Tracking")

@@ -241,7 +241,8 @@ def check_panel(addon, obj):
     addon.ISK_PT_panel.draw(panel, bpy.context)
     items = panel.layout.items
     print(f"panel: {', '.join(items)}")
-    for item in ("method", "operator", "joint_operators", "rounds", "sigma",
+    for item in ("method", "operator", "joint_operators", "untracked_joints",
+                 "rounds", "sigma",
                  "contact_angle", "smoothing_steps", "relaxation",
                  "skinned_ring_relaxation", "crease_gate", "dislocation_guard",
                  "volume_restore",
@@ -391,6 +392,17 @@ def run(args, asset, work, addon, isk):
           and obj.modifiers["Armature"].show_viewport and not obj.isk.active,
           "a failed Build changed the object")
     obj.isk.joint_operators = ""
+    obj.isk.untracked_joints = "no such bone*"
+    try:
+        bpy.ops.isk.build()
+        message = ""
+    except RuntimeError as e:
+        message = str(e)
+    print(f"bad untracked bone pattern: {message.strip()}")
+    check("'no such bone*' matches no bone" in message
+          and obj.data.shape_keys is None and not obj.isk.active,
+          "a failed Build changed the object")
+    obj.isk.untracked_joints = ""
 
     # Implicit (compare_implicit says why its bounds are looser).
     build(obj, "implicit", args.device, args.cache)

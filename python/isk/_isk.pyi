@@ -88,6 +88,7 @@ class ImplicitSkinner:
         device: Device = "opencl",
         operator: Operator = "union",
         joint_operators: Optional[Mapping[str, Operator]] = None,
+        untracked_joints: Optional[Sequence[str]] = None,
         bulge_strength: Optional[float] = None,
         blend_theta: Optional[float] = None,
         rounds: Optional[int] = None,

@@ -118,10 +118,11 @@ class PyImplicitSkinner {
  public:
   PyImplicitSkinner(
       RigPtr rig, const std::string& device, const std::string& op,
-      py::object joint_operators, std::optional<double> bulge_strength,
-      std::optional<double> blend_theta, std::optional<int> rounds,
-      std::optional<float> sigma, std::optional<float> contact_angle,
-      std::optional<int> smoothing_steps, std::optional<bool> relaxation,
+      py::object joint_operators, py::object untracked_joints,
+      std::optional<double> bulge_strength, std::optional<double> blend_theta,
+      std::optional<int> rounds, std::optional<float> sigma,
+      std::optional<float> contact_angle, std::optional<int> smoothing_steps,
+      std::optional<bool> relaxation,
       std::optional<bool> skinned_ring_relaxation,
       std::optional<bool> crease_gate, std::optional<float> volume_restore,
       std::optional<bool> dislocation_guard, const std::string& base_skinning,
@@ -143,6 +144,24 @@ class PyImplicitSkinner {
         }
         composition.joint_operators[name] =
             parseOperator(py::str(value), "joint_operators['" + name + "']");
+      }
+    }
+    if (!untracked_joints.is_none()) {
+      if (py::isinstance<py::str>(untracked_joints) ||
+          !py::isinstance<py::sequence>(untracked_joints)) {
+        fail("untracked_joints", "expected a list of joint names");
+      }
+      for (const py::handle item : untracked_joints.cast<py::sequence>()) {
+        if (!py::isinstance<py::str>(item)) {
+          fail("untracked_joints", "expected joint names (str), got " +
+                                       std::string(py::repr(item)));
+        }
+        const std::string name = py::str(item);
+        if (rig_->skeleton.find(name) < 0) {
+          fail("untracked_joints",
+               "no joint named '" + name + "' in " + rig_->source);
+        }
+        options.fields.untracked_joints.insert(name);
       }
     }
     // Validated with the fields' options (buildImplicitFields).
@@ -337,16 +356,18 @@ void registerSkinners(py::module_& m) {
                                 "Implicit skinning of one rig "
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
-      .def(py::init<
-               RigPtr, const std::string&, const std::string&, py::object,
-               std::optional<double>, std::optional<double>, std::optional<int>,
-               std::optional<float>, std::optional<float>, std::optional<int>,
-               std::optional<bool>, std::optional<bool>, std::optional<bool>,
-               std::optional<float>, std::optional<bool>, const std::string&,
-               bool, std::optional<std::string>, py::object>(),
+      .def(py::init<RigPtr, const std::string&, const std::string&, py::object,
+                    py::object, std::optional<double>, std::optional<double>,
+                    std::optional<int>, std::optional<float>,
+                    std::optional<float>, std::optional<int>,
+                    std::optional<bool>, std::optional<bool>,
+                    std::optional<bool>, std::optional<float>,
+                    std::optional<bool>, const std::string&, bool,
+                    std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
+           py::arg("untracked_joints") = py::none(),
            py::arg("bulge_strength") = py::none(),
            py::arg("blend_theta") = py::none(), py::arg("rounds") = py::none(),
            py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),

@@ -143,6 +143,12 @@ def test_bad_options_are_named():
         isk.ImplicitSkinner(rig, joint_operators={"knee": "blend"})
     with pytest.raises(isk.InvalidArgumentError, match="blend"):
         isk.ImplicitSkinner(rig, joint_operators={rig.joint_names[1]: "x"})
+    with pytest.raises(isk.InvalidArgumentError,
+                       match="untracked_joints: no joint named 'knee'"):
+        isk.ImplicitSkinner(rig, untracked_joints=["knee"])
+    with pytest.raises(isk.InvalidArgumentError,
+                       match="untracked_joints: expected a list"):
+        isk.ImplicitSkinner(rig, untracked_joints="wrist")
     with pytest.raises(isk.InvalidArgumentError, match="tracking"):
         isk.ImplicitSkinner(rig, sigma=2.0)
     with pytest.raises(isk.InvalidArgumentError, match="tracking"):

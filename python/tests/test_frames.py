@@ -163,6 +163,32 @@ def test_dislocation_guard_option_reaches_the_tracking():
                             dislocation_guard=False).deform(chain_pose)[0])
 
 
+def test_untracked_joints_stay_on_skinning():
+    # The arm's hand (the wrist's part: its vertices' largest weight) left
+    # on skinning: those vertices are DQS's on the CPU reference (the
+    # OpenCL frame within float rounding of the march elsewhere), while the
+    # rest of the arm is still tracked.
+    rig = isk.builtin_rig("arm")
+    pose = rig.bend_pose(90)
+    indices, weights = rig.weight_arrays()
+    wrist = rig.joint_names.index("wrist")
+    hand = indices[np.arange(rig.vertex_count), weights.argmax(axis=1)] == wrist
+    assert hand.any() and not hand.all()
+    for device in ("reference", "opencl"):
+        dqs = isk.GeometricSkinner(rig, method="dqs",
+                                   device=device).deform(pose)[0]
+        tracked = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
+        untracked = isk.ImplicitSkinner(
+            rig, device=device, untracked_joints=["wrist"]).deform(pose)[0]
+        assert not np.array_equal(tracked[hand], dqs[hand]), device
+        if device == "reference":
+            assert np.array_equal(untracked[hand], dqs[hand])
+        else:
+            assert np.abs(untracked[hand] - dqs[hand]).max() < (
+                1e-4 * rig.bounding_box_diagonal)
+        assert not np.array_equal(untracked[~hand], dqs[~hand]), device
+
+
 def test_layers_option_reaches_the_fit():
     # The sleeved arm's sleeve is a layer: fitted with the skin
     # (layers=False) the frames differ; the plain arm has none: the same

@@ -1,5 +1,6 @@
 #include "skin_options.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -75,6 +76,11 @@ void addRunOptions(CLI::App& app, Options& options) {
   app.add_option("--save-params", options.save_params,
                  "write the effective per-joint parameters (file + command "
                  "line) to this JSON file");
+  app.add_option("--untracked-joint", options.untracked_joints,
+                 "implicit: PATTERN ('*', '?'): the parts of the joints it "
+                 "names stay where skinning puts them (thin parts the fields "
+                 "cannot hold, e.g. 'wing*'; repeatable)")
+      ->allow_extra_args(false);
   app.add_option("--gltf", options.gltf,
                  "animated glTF (.glb) of the frames beside LBS and DQS, "
                  "playable in any glTF viewer");
@@ -253,6 +259,26 @@ void applyCommandLine(const Options& options, const Skeleton& skeleton,
     if (skeleton.find(name) < 0) continue;  // reported by the validation
     params.joints[name].op = op;
   }
+  for (const std::string& pattern : options.untracked_joints) {
+    bool matched = false;
+    for (const Joint& joint : skeleton.joints) {
+      if (!jointNameMatches(pattern, joint.name)) continue;
+      params.joints[joint.name].tracked = false;
+      matched = true;
+    }
+    if (!matched) {
+      std::string known;
+      const int shown = std::min(skeleton.jointCount(), 8);
+      for (int j = 0; j < shown; ++j)
+        known += (j ? ", '" : "'") + skeleton.joints[j].name + "'";
+      if (skeleton.jointCount() > shown)
+        known +=
+            " and " + std::to_string(skeleton.jointCount() - shown) + " more";
+      throw Error(ErrorCode::kInvalidArgument,
+                  options.input + ": --untracked-joint '" + pattern +
+                      "': no joint matches (joints: " + known + ")");
+    }
+  }
 }
 
 // --save-params: checks that what is written reads back (a joint key that
@@ -427,11 +453,34 @@ int frameCount(const Options& options, const AnimationClip& clip) {
   return frames;
 }
 
+bool jointNameMatches(const std::string& pattern, const std::string& name) {
+  // Greedy match with one backtrack point: the last '*' seen.
+  size_t p = 0, n = 0, star = std::string::npos, resume = 0;
+  while (n < name.size()) {
+    if (p < pattern.size() && (pattern[p] == '?' || pattern[p] == name[n])) {
+      ++p;
+      ++n;
+    } else if (p < pattern.size() && pattern[p] == '*') {
+      star = p++;
+      resume = n;
+    } else if (star != std::string::npos) {
+      p = star + 1;
+      n = ++resume;
+    } else {
+      return false;
+    }
+  }
+  while (p < pattern.size() && pattern[p] == '*') ++p;
+  return p == pattern.size();
+}
+
 std::optional<ImplicitFieldsOptions> loadParams(const Options& options,
                                                 const Rig& rig,
                                                 std::ostream& log) {
   const std::string path = paramsFile(options, log);
-  if (path.empty() && options.save_params.empty()) return std::nullopt;
+  if (path.empty() && options.save_params.empty() &&
+      options.untracked_joints.empty())
+    return std::nullopt;
   RigParams params;
   if (!path.empty()) {
     params = loadRigParams(path, &rig.skeleton);

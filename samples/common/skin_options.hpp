@@ -55,6 +55,9 @@ struct Options {
   // Per-joint parameters (--params, --save-params, <asset>.isk.json).
   std::string params;
   std::string save_params;
+  // --untracked-joint: joint name patterns ('*', '?') whose parts stay on
+  // skinning, as given.
+  std::vector<std::string> untracked_joints;
 
   // Surface tracking (--method implicit); defaults are the paper's.
   SurfaceTrackingOptions tracking;
@@ -109,10 +112,16 @@ ImportOptions importOptions(const Options& options);
 // asking for --frames.
 int frameCount(const Options& options, const AnimationClip& clip);
 
+// Whether `name` matches `pattern`, where '*' stands for any run of
+// characters and '?' for one (--untracked-joint).
+bool jointNameMatches(const std::string& pattern, const std::string& name);
+
 // The parameters of --params FILE.json (or, without it, of
 // <INPUT>.isk.json when that file exists: said on `log`) with the command
-// line's operator options on top, as field options; written to
-// --save-params. Unset when neither a file nor --save-params is in play.
+// line's operator options and untracked joints on top, as field options;
+// written to --save-params. Unset when neither a file, --save-params nor
+// --untracked-joint is in play. A --untracked-joint pattern that matches no
+// joint is an error naming it.
 // Throws isk::Error naming the file, the joint and the key.
 std::optional<ImplicitFieldsOptions> loadParams(const Options& options,
                                                 const Rig& rig,

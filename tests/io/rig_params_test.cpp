@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -37,7 +38,11 @@ RigParams everyKey(const Skeleton& skeleton) {
   params.joints[skeleton.joints[1].name] = a;
   JointParams b;
   b.theta_curve = std::vector<float>{0.785398f, 0.3f, 0.1f, 0.3f, 0.785398f};
+  b.tracked = false;
   params.joints[skeleton.joints[2].name] = b;
+  JointParams c;
+  c.tracked = true;  // said, the default
+  params.joints[skeleton.joints[3].name] = c;
   return params;
 }
 
@@ -57,7 +62,7 @@ std::string errorOf(F f) {
 TEST(RigParamsTest, RoundTripsThroughAFile) {
   test::ScopedTempDir dir;
   const Rig& rig = test::rigNamed("arm");
-  ASSERT_GE(rig.skeleton.jointCount(), 3);
+  ASSERT_GE(rig.skeleton.jointCount(), 4);
   const RigParams params = everyKey(rig.skeleton);
   saveRigParams(dir / "p.json", params);
   const RigParams back = loadRigParams(dir / "p.json", &rig.skeleton);
@@ -111,9 +116,12 @@ TEST(RigParamsTest, ApplySetsOperatorsSamplesAndControllers) {
             bulgeController(0.5).theta);
   EXPECT_EQ(options.composition.joint_controllers.at(b).theta,
             params.joints.at(b).theta_curve.value());
+  // "tracked": false, and only it, names an untracked joint.
+  EXPECT_EQ(options.untracked_joints, std::set<std::string>{b});
   // The options build: the parameters are valid for the rig.
   const ImplicitFields fields = buildImplicitFields(rig, options);
   EXPECT_EQ(fields.composition.operatorAt(1), CompositionOperator::kBulge);
+  EXPECT_FALSE(fields.untracked_vertices.empty());
 }
 
 TEST(RigParamsTest, ErrorsNameTheFileTheJointAndTheKey) {
@@ -163,6 +171,14 @@ TEST(RigParamsTest, ErrorsNameTheFileTheJointAndTheKey) {
         "p.json", s);
   });
   EXPECT_NE(m.find("key 'theta_curve'[1]"), std::string::npos) << m;
+
+  m = errorOf([&] {
+    parseRigParams(R"({"joints": {")" + joint + R"(": {"tracked": "no"}}})",
+                   "p.json", s);
+  });
+  EXPECT_NE(m.find("joint '" + joint + "': key 'tracked'"), std::string::npos)
+      << m;
+  EXPECT_NE(m.find("expected true or false"), std::string::npos) << m;
 
   // A key that does not fit the joint's operator.
   m = errorOf([&] {

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -374,6 +375,54 @@ TEST(IskSkinOptions, CommandLineOperatorsWinOverTheParameterFile) {
   EXPECT_EQ(saved.default_operator, CompositionOperator::kUnion);
   EXPECT_EQ(saved.joints.at("wrist").op.value_or(CompositionOperator::kUnion),
             CompositionOperator::kBlend);
+}
+
+TEST(IskSkinOptions, JointNamePatterns) {
+  using samples::skin::jointNameMatches;
+  EXPECT_TRUE(jointNameMatches("wrist", "wrist"));
+  EXPECT_FALSE(jointNameMatches("wrist", "wrist_l"));
+  EXPECT_TRUE(jointNameMatches("wing*", "wing_feather_4_0_l"));
+  EXPECT_TRUE(jointNameMatches("wing*", "wing"));
+  EXPECT_FALSE(jointNameMatches("wing*", "left_wing"));
+  EXPECT_TRUE(jointNameMatches("*wing*", "left_wing_2"));
+  EXPECT_TRUE(jointNameMatches("*_l", "wing_3_l"));
+  EXPECT_FALSE(jointNameMatches("*_l", "wing_3_r"));
+  EXPECT_TRUE(jointNameMatches("wing_?_l", "wing_3_l"));
+  EXPECT_FALSE(jointNameMatches("wing_?_l", "wing_10_l"));
+  EXPECT_TRUE(jointNameMatches("a*b*c", "aXXbYbZc"));
+  EXPECT_FALSE(jointNameMatches("a*b*c", "aXXbYbZ"));
+  EXPECT_TRUE(jointNameMatches("*", ""));
+  EXPECT_FALSE(jointNameMatches("?", ""));
+  EXPECT_TRUE(jointNameMatches("mixamorig:*Hand*", "mixamorig:LeftHandIndex1"));
+}
+
+// --untracked-joint: every joint a pattern matches gets "tracked": false
+// (in the options and in --save-params); a pattern matching none is an
+// error that names it and lists joints.
+TEST(IskSkinOptions, UntrackedJointPatternsNameTheJoints) {
+  const ScopedTempDir dir;
+  const Rig rig = makeBuiltinRig("arm");
+  Options options;
+  options.input = "builtin:arm";
+  options.untracked_joints = {"wri*", "hand_?ip"};
+  options.save_params = dir / "saved.json";
+  std::ostringstream log;
+  const std::optional<ImplicitFieldsOptions> params =
+      samples::skin::loadParams(options, rig, log);
+  ASSERT_TRUE(params.has_value());
+  EXPECT_EQ(params->untracked_joints,
+            (std::set<std::string>{"wrist", "hand_tip"}));
+  const RigParams saved = loadRigParams(options.save_params, &rig.skeleton);
+  EXPECT_EQ(saved.joints.at("wrist").tracked, std::optional<bool>(false));
+  EXPECT_EQ(saved.joints.at("hand_tip").tracked, std::optional<bool>(false));
+  EXPECT_EQ(saved.joints.count("elbow"), 0u);
+
+  options.save_params.clear();
+  options.untracked_joints = {"wrist", "wing*"};
+  expectError([&] { samples::skin::loadParams(options, rig, log); },
+              ErrorCode::kInvalidArgument,
+              "builtin:arm: --untracked-joint 'wing*': no joint matches "
+              "(joints: 'shoulder', 'elbow', 'wrist', 'hand_tip')");
 }
 
 TEST(IskSkinOptions, TheParameterFileBesideTheAssetIsFoundAndSaid) {

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <filesystem>
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -103,6 +104,11 @@ void checkBuildInputs(const Rig& rig, const ImplicitFieldsOptions& options) {
                       "'] must be in [1, 100000], got " +
                       std::to_string(samples));
   }
+  for (const std::string& name : options.untracked_joints)
+    if (rig.skeleton.find(name) < 0)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "buildImplicitFields: untracked_joints names joint '" + name +
+                      "', which the skeleton does not have");
   validateCompositionOptions(rig.skeleton, options.composition)
       .throwIfFailed("buildImplicitFields");
 }
@@ -294,13 +300,38 @@ void precisionStage(const BuildInputs& in, ImplicitFields& out) {
     roundGridsToHalf(out.grids);
 }
 
+// The vertices whose part belongs to one of `names` (ascending).
+std::vector<int> untrackedVertices(const Rig& rig,
+                                   const BonePartition& partition,
+                                   const std::set<std::string>& names) {
+  std::vector<int> out;
+  if (names.empty()) return out;
+  std::vector<uint8_t> untracked(rig.skeleton.jointCount(), 0);
+  for (const std::string& name : names)
+    if (const int j = rig.skeleton.find(name); j >= 0) untracked[j] = 1;
+  for (size_t v = 0; v < partition.vertex_joint.size(); ++v) {
+    const int j = partition.vertex_joint[v];
+    if (j >= 0 && j < static_cast<int>(untracked.size()) && untracked[j])
+      out.push_back(static_cast<int>(v));
+  }
+  return out;
+}
+
+void zeroIsoValues(const std::vector<int>& vertices,
+                   std::vector<float>& iso_values) {
+  for (const int v : vertices) iso_values[v] = 0.f;
+}
+
 // Each vertex's composed field value at the bind pose: the value tracking
-// brings it back to.
+// brings it back to (0 on the untracked joints' parts).
 void isoValuesStage(const BuildInputs& in, ImplicitFields& out) {
   const auto start = std::chrono::steady_clock::now();
   in.report("iso values", 0);
   out.iso_values = computeIsoValues(out.grids, in.rig.mesh.positions,
                                     &out.composition, &out.outside_vertices);
+  out.untracked_vertices =
+      untrackedVertices(in.rig, out.partition, in.options.untracked_joints);
+  zeroIsoValues(out.untracked_vertices, out.iso_values);
   if (!out.outside_vertices.empty())
     out.warnings.push_back(
         std::to_string(out.outside_vertices.size()) +
@@ -366,6 +397,7 @@ void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig) {
   std::vector<int> outside;
   std::vector<float> iso = computeIsoValues(rounded, rig.mesh.positions,
                                             &fields.composition, &outside);
+  zeroIsoValues(fields.untracked_vertices, iso);
   fields.grids = std::move(rounded);
   fields.iso_values = std::move(iso);
   fields.outside_vertices = std::move(outside);

@@ -79,7 +79,7 @@ std::string knownJoints(const Skeleton& skeleton) {
 bool JointParams::operator==(const JointParams& o) const {
   return op == o.op && samples == o.samples &&
          bulge_strength == o.bulge_strength && blend_theta == o.blend_theta &&
-         theta_curve == o.theta_curve;
+         theta_curve == o.theta_curve && tracked == o.tracked;
 }
 
 bool RigParams::operator==(const RigParams& o) const {
@@ -154,10 +154,14 @@ RigParams parseRigParams(const std::string& text, const std::string& file,
               curve.push_back(static_cast<float>(readTheta(
                   v[i], file, where + "[" + std::to_string(i) + "]")));
             jp.theta_curve = curve;
+          } else if (name == "tracked") {
+            if (!v.is_boolean())
+              fail(file, where, "expected true or false, got " + v.dump());
+            jp.tracked = v.get<bool>();
           } else {
             fail(file, where,
                  "unknown key (expected operator, samples, bulge_strength, "
-                 "blend_theta or theta_curve)");
+                 "blend_theta, theta_curve or tracked)");
           }
         }
         const CompositionOperator op = jp.op.value_or(params.default_operator);
@@ -209,6 +213,7 @@ std::string formatRigParams(const RigParams& params) {
     if (jp.bulge_strength) entry["bulge_strength"] = *jp.bulge_strength;
     if (jp.blend_theta) entry["blend_theta"] = *jp.blend_theta;
     if (jp.theta_curve) entry["theta_curve"] = *jp.theta_curve;
+    if (jp.tracked) entry["tracked"] = *jp.tracked;
     joints[name] = entry;
   }
   root["joints"] = joints;
@@ -228,6 +233,7 @@ void applyRigParams(const RigParams& params, ImplicitFieldsOptions* options) {
   for (const auto& [name, jp] : params.joints) {
     if (jp.op) c.joint_operators[name] = *jp.op;
     if (jp.samples) options->joint_samples[name] = *jp.samples;
+    if (jp.tracked && !*jp.tracked) options->untracked_joints.insert(name);
     if (jp.theta_curve) {
       ThetaController controller;
       controller.theta = *jp.theta_curve;

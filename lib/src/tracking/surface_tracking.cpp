@@ -752,6 +752,11 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
   TrackingMesh out;
   out.rings = OneRings::build(mesh.positions, mesh.triangles);
   out.relaxation = RelaxationWeights::build(out.rings, mesh.positions);
+  // The untracked joints' parts stay where skinning puts them: not smoothed
+  // either, even beside a contact.
+  for (const int v : fields.untracked_vertices)
+    if (v >= 0 && v < mesh.vertexCount())
+      out.relaxation.rules[v] = RelaxationRule::kFixed;
   out.iso_values = fields.iso_values;
   out.triangles = mesh.triangles;
   out.diagonal = boundingBoxDiagonal(mesh.positions);

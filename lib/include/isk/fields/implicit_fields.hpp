@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,11 @@ struct ImplicitFieldsOptions {
   // Per-joint Poisson-disk targets by joint name (replace
   // sampling.target_samples for that joint's part; 1..100000).
   std::map<std::string, int> joint_samples;
+  // Joints whose parts stay where geometric skinning puts them, by name:
+  // their vertices get iso value 0 (untracked), their fields still meet
+  // the other parts. For parts the fields cannot hold (a wing's membrane a
+  // few triangles thick, a strap): docs/algorithm.md, *Untracked joints*.
+  std::set<std::string> untracked_joints;
   // On-disk cache of the built fields (isk/fields/field_cache.hpp): when true,
   // the samples, fits and baked grids are loaded from `cache_folder` (empty:
   // operatorTableCacheFolder(), i.e. $ISK_CACHE_DIR, "off" disabling it)
@@ -88,9 +94,12 @@ struct ImplicitFields {
   FieldGridSet grids;                // per field (baked: what is evaluated)
   Composition composition;           // the operator of each joint pair
   // #V: each vertex's composed field value at the bind pose, the iso value
-  // tracking brings it back to.
+  // tracking brings it back to; 0 (untracked) outside every support and on
+  // the parts of options.untracked_joints.
   std::vector<float> iso_values;
   std::vector<int> outside_vertices;  // vertices outside every support
+  // The vertices of untracked_joints' parts (ascending; iso value 0).
+  std::vector<int> untracked_vertices;
   // One sentence each: empty or degenerate parts, re-sampled or dropped
   // fields, regularised fits, named joints without a pair, a cache file
   // that was unusable or could not be written. The library prints nothing:

@@ -19,7 +19,8 @@
 //       "finger_1": { "operator": "bulge", "bulge_strength": 0.5,
 //                     "samples": 80 },
 //       "wrist": { "operator": "blend",
-//                  "theta_curve": [0.785, 0.6, 0.3, 0.6, 0.785] }
+//                  "theta_curve": [0.785, 0.6, 0.3, 0.6, 0.785] },
+//       "wing_membrane": { "tracked": false }
 //     }
 //   }
 //
@@ -30,7 +31,9 @@
 // to be bulge or blend respectively; "theta_curve" replaces the controller
 // by theta samples (radians in [0, pi/4]) taken uniformly over the angle
 // alpha in [0, pi] between the two fields' gradients (at least 2 samples),
-// and excludes the two keys before it. Errors are isk::Error
+// and excludes the two keys before it; "tracked": false leaves the joint's
+// part where geometric skinning puts it (ImplicitFieldsOptions::
+// untracked_joints: a part the fields cannot hold). Errors are isk::Error
 // (kInvalidArgument) naming the file, the joint and the key.
 #pragma once
 
@@ -51,6 +54,7 @@ struct JointParams {
   std::optional<double> bulge_strength;
   std::optional<double> blend_theta;
   std::optional<std::vector<float>> theta_curve;
+  std::optional<bool> tracked;  // false: the part stays on skinning
 
   bool operator==(const JointParams& other) const;
 };
@@ -83,7 +87,7 @@ void saveRigParams(const std::string& path, const RigParams& params);
 // Sets the composition and sampling of `options` from `params`: default
 // operator, controllers and samples, per-joint operators, sample counts and
 // controllers (a joint with a theta_curve, bulge_strength or blend_theta
-// gets its own controller).
+// gets its own controller), and the untracked joints ("tracked": false).
 void applyRigParams(const RigParams& params, ImplicitFieldsOptions* options);
 
 // "<asset>.isk.json": the parameter file that goes with `asset_path`.
