@@ -41,6 +41,38 @@ double meanDistance(const BoneSegment& s, const Mesh& mesh,
   return vertices.empty() ? 0 : sum / vertices.size();
 }
 
+// A part that lies along its bone's line but mostly off the bone (most of
+// its span beyond the bone's ends) and wraps that span clearly better than
+// the bone: its segment becomes the span. Some files weight each stretch of
+// a smooth tube most to a joint at one end of it or beyond
+// (animation_with_skeleton.fbx), and the bone's culling planes, closure
+// points and radius would fit little of it. A part merely longer than its
+// bone (an ear, a hip) wraps the bone about as well and keeps it.
+constexpr double kPartSpanOverlap = 0.5;   // of the span, at most
+constexpr double kPartSpanDistance = 0.7;  // of the mean distance to the bone
+
+void fitSegmentToPart(const Mesh& mesh, const std::vector<int>& part,
+                      BoneSegment* segment) {
+  BoneSegment& s = *segment;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int v : part) {
+    const double t = s.along(mesh.positions.row(v).transpose().cast<double>());
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
+  }
+  const double overlap = std::min(hi, 1.0) - std::max(lo, 0.0);
+  if (!(hi - lo > 0) || !(overlap < kPartSpanOverlap * (hi - lo))) return;
+  BoneSegment span = s;
+  const Eigen::Vector3d b0 = s.start, d = s.end - s.start;
+  span.start = b0 + lo * d;
+  span.end = b0 + hi * d;
+  if (meanDistance(span, mesh, part) <
+      kPartSpanDistance * meanDistance(s, mesh, part)) {
+    s.start = span.start;
+    s.end = span.end;
+  }
+}
+
 // Connected components of the mesh welded by position: #V component ids.
 std::vector<int> weldedComponents(const Mesh& mesh) {
   const int vertex_count = mesh.vertexCount();
@@ -260,6 +292,8 @@ BonePartition partitionMesh(const Rig& rig) {
         }
       }
     }
+    if (!part.empty() && s.length() > min_length)
+      fitSegmentToPart(mesh, part, &s);
     s.degenerate = s.length() <= min_length;
     if (s.degenerate) s.end = s.start;
     const int parent = skeleton.joints[j].parent;

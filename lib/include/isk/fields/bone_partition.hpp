@@ -18,6 +18,12 @@
 //   segments shorter than 1e-6 of the mesh diagonal): a point bone, b1 = b0,
 //   `degenerate` set; its field is fitted without culling planes or closure
 //   points, and a warning says so.
+// A part that lies along that segment's line but mostly beyond its ends
+// (less than half of its span along the bone within [b0, b1]), and whose
+// vertices are on average nearer its own span than the bone by a factor of
+// 0.7 or more, takes its span instead: b0 and b1 move along the line to
+// the part's first and last vertex (smooth tubes whose stretches are
+// weighted most to a joint at one end, animation_with_skeleton.fbx).
 //
 // Layers (our addition, docs/algorithm.md): clothes, eyes and other
 // accessory meshes share the bones of the skin under them, and a field
@@ -45,11 +51,13 @@ namespace isk {
 // A bone as the fields see it: a segment in model space at the bind pose
 // (model units).
 struct BoneSegment {
-  int joint = -1;                     // joint index in the skeleton
-  Eigen::Vector3d start = {0, 0, 0};  // b0: the joint, bind pose, model space
-  Eigen::Vector3d end = {0, 0, 0};    // b1
-  int end_joint = -1;                 // the child joint at b1, -1 if none
-  bool degenerate = false;            // b1 == b0 (see above)
+  int joint = -1;  // joint index in the skeleton
+  // b0: the joint (or the start of its part's span, above), bind pose,
+  // model space.
+  Eigen::Vector3d start = {0, 0, 0};
+  Eigen::Vector3d end = {0, 0, 0};  // b1
+  int end_joint = -1;               // the child joint at b1, -1 if none
+  bool degenerate = false;          // b1 == b0 (see above)
   // Whether the end touches another part (the parent's part at b0, the
   // child's part at b1): only those ends get a culling plane and a closure
   // point.
