@@ -41,35 +41,65 @@ double meanDistance(const BoneSegment& s, const Mesh& mesh,
   return vertices.empty() ? 0 : sum / vertices.size();
 }
 
-// A part that lies along its bone's line but mostly off the bone (most of
-// its span beyond the bone's ends) and wraps that span clearly better than
-// the bone: its segment becomes the span. Some files weight each stretch of
-// a smooth tube most to a joint at one end of it or beyond
-// (animation_with_skeleton.fbx), and the bone's culling planes, closure
-// points and radius would fit little of it. A part merely longer than its
-// bone (an ear, a hip) wraps the bone about as well and keeps it.
+// A part that lies mostly off its bone (less than half of its span along
+// the bone on it) and wraps a span of its own clearly better than the bone
+// takes that span as its segment: its extent along the bone's line, or along
+// the incoming bone's (parent joint -> joint) where that fits better. Some
+// files weight each stretch of a smooth tube most to a joint at one end of
+// it or beyond (animation_with_skeleton.fbx), and the bone's culling planes,
+// closure points and radius would fit little of it. A part merely longer
+// than its bone (an ear, a hip) wraps the bone about as well and keeps it.
 constexpr double kPartSpanOverlap = 0.5;   // of the span, at most
 constexpr double kPartSpanDistance = 0.7;  // of the mean distance to the bone
 
-void fitSegmentToPart(const Mesh& mesh, const std::vector<int>& part,
-                      BoneSegment* segment) {
-  BoneSegment& s = *segment;
+// The part's extent along the line through `line`'s ends; `overlap` its
+// share within them.
+BoneSegment partSpan(const Mesh& mesh, const std::vector<int>& part,
+                     const BoneSegment& line, double* overlap) {
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (int v : part) {
-    const double t = s.along(mesh.positions.row(v).transpose().cast<double>());
+    const double t =
+        line.along(mesh.positions.row(v).transpose().cast<double>());
     lo = std::min(lo, t);
     hi = std::max(hi, t);
   }
-  const double overlap = std::min(hi, 1.0) - std::max(lo, 0.0);
-  if (!(hi - lo > 0) || !(overlap < kPartSpanOverlap * (hi - lo))) return;
-  BoneSegment span = s;
-  const Eigen::Vector3d b0 = s.start, d = s.end - s.start;
+  *overlap =
+      hi - lo > 0 ? (std::min(hi, 1.0) - std::max(lo, 0.0)) / (hi - lo) : 1.0;
+  BoneSegment span = line;
+  const Eigen::Vector3d b0 = line.start, d = line.end - line.start;
   span.start = b0 + lo * d;
   span.end = b0 + hi * d;
-  if (meanDistance(span, mesh, part) <
-      kPartSpanDistance * meanDistance(s, mesh, part)) {
-    s.start = span.start;
-    s.end = span.end;
+  return span;
+}
+
+void fitSegmentToPart(const Mesh& mesh, const std::vector<int>& part,
+                      const Eigen::Vector3d* parent_position,
+                      BoneSegment* segment) {
+  BoneSegment& s = *segment;
+  double overlap = 1;
+  const BoneSegment along_bone = partSpan(mesh, part, s, &overlap);
+  if (!(overlap < kPartSpanOverlap)) return;
+  double best = kPartSpanDistance * meanDistance(s, mesh, part);
+  const BoneSegment* chosen = nullptr;
+  if (const double d = meanDistance(along_bone, mesh, part); d < best) {
+    best = d;
+    chosen = &along_bone;
+  }
+  BoneSegment incoming = s, along_incoming;
+  if (parent_position) {
+    incoming.start = *parent_position;
+    incoming.end = s.start;
+    if (incoming.length() > 0) {
+      double on_incoming = 0;
+      along_incoming = partSpan(mesh, part, incoming, &on_incoming);
+      if (const double d = meanDistance(along_incoming, mesh, part);
+          on_incoming >= kPartSpanOverlap && d < best)
+        chosen = &along_incoming;
+    }
+  }
+  if (chosen) {
+    s.start = chosen->start;
+    s.end = chosen->end;
   }
 }
 
@@ -292,8 +322,17 @@ BonePartition partitionMesh(const Rig& rig) {
         }
       }
     }
-    if (!part.empty() && s.length() > min_length)
-      fitSegmentToPart(mesh, part, &s);
+    if (!part.empty() && s.length() > min_length) {
+      // The incoming bone is a candidate where the parent's part goes on
+      // into this one.
+      const bool parent_part =
+          parent_joint >= 0 && !partition.part_vertices[parent_joint].empty();
+      const Eigen::Vector3d parent_position =
+          parent_part ? jointPosition(globals, parent_joint)
+                      : Eigen::Vector3d::Zero();
+      fitSegmentToPart(mesh, part, parent_part ? &parent_position : nullptr,
+                       &s);
+    }
     s.degenerate = s.length() <= min_length;
     if (s.degenerate) s.end = s.start;
     const int parent = skeleton.joints[j].parent;
