@@ -381,28 +381,23 @@ def run(args, asset, work, addon, isk):
                    clip, fps, mapping, 1e-4)
 
     # A bad setting is reported and changes nothing.
-    obj.isk.method, obj.isk.joint_operators = "implicit", "no such bone=blend"
-    try:
-        bpy.ops.isk.build()
-        message = ""
-    except RuntimeError as e:
-        message = str(e)
-    print(f"bad per-joint operator: {message.strip()}")
-    check("no such bone" in message and obj.data.shape_keys is None
-          and obj.modifiers["Armature"].show_viewport and not obj.isk.active,
-          "a failed Build changed the object")
-    obj.isk.joint_operators = ""
-    obj.isk.untracked_joints = "no such bone*"
-    try:
-        bpy.ops.isk.build()
-        message = ""
-    except RuntimeError as e:
-        message = str(e)
-    print(f"bad untracked bone pattern: {message.strip()}")
-    check("'no such bone*' matches no bone" in message
-          and obj.data.shape_keys is None and not obj.isk.active,
-          "a failed Build changed the object")
-    obj.isk.untracked_joints = ""
+    obj.isk.method = "implicit"
+    for setting, value, expected in (
+            ("joint_operators", "no such bone=blend", "no such bone"),
+            ("untracked_joints", "no such bone*",
+             "'no such bone*' matches no bone")):
+        setattr(obj.isk, setting, value)
+        try:
+            bpy.ops.isk.build()
+            message = ""
+        except RuntimeError as e:
+            message = str(e)
+        print(f"bad {setting}: {message.strip()}")
+        check(expected in message and obj.data.shape_keys is None
+              and obj.modifiers["Armature"].show_viewport
+              and not obj.isk.active,
+              "a failed Build changed the object")
+        setattr(obj.isk, setting, "")
 
     # Implicit (compare_implicit says why its bounds are looser).
     build(obj, "implicit", args.device, args.cache)
