@@ -1,6 +1,7 @@
 #include "skin_report.hpp"
 
 #include <iomanip>
+#include <set>
 #include <sstream>
 
 #include "isk/fields/composition_operator.hpp"
@@ -147,6 +148,15 @@ nlohmann::json implicitFieldsSection(const ImplicitFields& fields,
   for (const uint8_t layer : fields.partition.vertex_layer)
     layer_vertices += layer;
   section["layer_vertices"] = layer_vertices;
+  // The joints whose parts stay on skinning, by name, and their vertices.
+  std::set<std::string> untracked_joints;
+  for (const int v : fields.untracked_vertices) {
+    const int j = fields.partition.vertex_joint[v];
+    if (j >= 0 && j < skeleton.jointCount())
+      untracked_joints.insert(skeleton.joints[j].name);
+  }
+  section["untracked_joints"] = untracked_joints;
+  section["untracked_vertices"] = fields.untracked_vertices.size();
   section["build_ms"] = drift.build_ms;
   section["upload_ms"] = drift.upload_ms;
   section["operator_tables_mib"] = composition.tableBytes() / kMiB;

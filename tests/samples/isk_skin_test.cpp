@@ -925,6 +925,22 @@ TEST(IskSkinTest, BlendOperatorReportsTheImplicitSection) {
   EXPECT_TRUE(std::isfinite(section["field_ms"].get<double>()));
 }
 
+// --untracked-joint: the report names the joints it matched and counts
+// their vertices, which are no longer tracked; without it, none.
+TEST(IskSkinTest, UntrackedJointsAreReported) {
+  const nlohmann::json plain = armImplicitSection({"--method", "implicit"});
+  const nlohmann::json hand =
+      armImplicitSection({"--method", "implicit", "--untracked-joint", "wri*"});
+  ASSERT_TRUE(plain.is_object() && hand.is_object());
+  EXPECT_EQ(plain["untracked_joints"], nlohmann::json::array());
+  EXPECT_EQ(plain["untracked_vertices"].get<int>(), 0);
+  EXPECT_EQ(hand["untracked_joints"], nlohmann::json::array({"wrist"}));
+  const int untracked = hand["untracked_vertices"].get<int>();
+  EXPECT_GT(untracked, 0);
+  EXPECT_EQ(hand["tracked_vertices"].get<int>(),
+            plain["tracked_vertices"].get<int>() - untracked);
+}
+
 TEST(IskSkinTest, OperatorChoiceChangesTheIsoDrift) {
   const nlohmann::json with_union = armImplicitSection({"--operator", "union"});
   const nlohmann::json with_blend = armImplicitSection({"--operator", "blend"});
