@@ -53,7 +53,8 @@ nlohmann::json frameJson(const FrameQuality& q) {
           {"lost_vertices", q.lost_vertices}};
 }
 
-nlohmann::json qualitySection(const Options& options, const RunResult& result) {
+nlohmann::json qualitySection(const Options& options, const RunResult& result,
+                              const Skeleton& skeleton) {
   nlohmann::json quality;
   if (result.volume_ratio_min) {
     quality["volume_ratio"] = {{"min", *result.volume_ratio_min},
@@ -95,6 +96,17 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result) {
     nlohmann::json frames = nlohmann::json::array();
     for (const FrameQuality& q : result.quality) frames.push_back(frameJson(q));
     quality["frames"] = frames;
+    nlohmann::json parts = nlohmann::json::array();
+    for (const PartQuality& p : partsByExcessStrain(summary)) {
+      parts.push_back({{"joint", p.part < skeleton.jointCount()
+                                     ? skeleton.joints[p.part].name
+                                     : std::to_string(p.part)},
+                       {"edges", p.edges},
+                       {"edge_strain_mean", p.edge_strain_mean},
+                       {"dqs_edge_strain_mean", p.dqs_edge_strain_mean},
+                       {"dqs_distance_max", p.dqs_distance_max}});
+    }
+    quality["parts"] = parts;
   }
   return quality;
 }
@@ -200,7 +212,7 @@ nlohmann::json makeReport(const Options& options, const Rig& rig,
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& [name, ms] : result.stage_median) stages[name] = ms;
   report["stage_ms"] = stages;
-  report["quality"] = qualitySection(options, result);
+  report["quality"] = qualitySection(options, result, rig.skeleton);
   report["out"] = options.out_dir.empty() ? nlohmann::json(nullptr)
                                           : nlohmann::json(options.out_dir);
   report["format"] = options.format;
@@ -243,6 +255,40 @@ std::string formatRunSummary(const Options& options,
     out << "; wrote " << result.files.size() << " files to " << options.out_dir;
   }
   out << "\n";
+  return out.str();
+}
+
+std::vector<PartQuality> partsByExcessStrain(const QualitySummary& summary) {
+  std::vector<PartQuality> parts = summary.parts;
+  std::stable_sort(parts.begin(), parts.end(),
+                   [](const PartQuality& a, const PartQuality& b) {
+                     return a.edge_strain_mean - a.dqs_edge_strain_mean >
+                            b.edge_strain_mean - b.dqs_edge_strain_mean;
+                   });
+  return parts;
+}
+
+std::string formatPartsSummary(const RunResult& result,
+                               const Skeleton& skeleton, int count) {
+  if (result.quality.empty()) return "";
+  const std::vector<PartQuality> parts =
+      partsByExcessStrain(summarizeQuality(result.quality));
+  std::ostringstream out;
+  out << std::setprecision(3)
+      << "isk-skin: parts whose edge strain exceeds DQS's most:";
+  int shown = 0;
+  for (const PartQuality& p : parts) {
+    if (shown == count || !(p.edge_strain_mean > p.dqs_edge_strain_mean)) break;
+    out << (shown ? "; " : " ")
+        << (p.part < skeleton.jointCount() ? skeleton.joints[p.part].name
+                                           : std::to_string(p.part))
+        << " strain " << p.edge_strain_mean << " (DQS "
+        << p.dqs_edge_strain_mean << "), up to " << 100 * p.dqs_distance_max
+        << "% of the diagonal from DQS";
+    ++shown;
+  }
+  if (shown == 0) return "";
+  out << " (--untracked-joint keeps a part on skinning)\n";
   return out.str();
 }
 

@@ -61,6 +61,16 @@ nlohmann::json makeReport(const Options& options, const Rig& rig,
 // The summary line of a run on the device `device_name`, newline included:
 // frames, timings, volume, rest-pose error, self-intersections, contacts
 // and the frame files written.
+// The summary's parts (QualitySummary::parts), the largest excess of edge
+// strain over DQS's first (edge_strain_mean - dqs_edge_strain_mean).
+std::vector<PartQuality> partsByExcessStrain(const QualitySummary& summary);
+
+// One line naming the `count` parts whose edge strain exceeds DQS's most
+// (with DQS's and their largest distance from DQS), for the console; empty
+// when no frame was measured or no part exceeds DQS's strain.
+std::string formatPartsSummary(const RunResult& result,
+                               const Skeleton& skeleton, int count = 3);
+
 std::string formatRunSummary(const Options& options,
                              const std::string& clip_name,
                              const std::string& device_name,

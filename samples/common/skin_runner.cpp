@@ -14,6 +14,7 @@
 
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/fields/bone_partition.hpp"
 #include "isk/io/import.hpp"
 #include "isk/io/rig_params.hpp"
 #include "isk/rig/pose.hpp"
@@ -469,9 +470,14 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
   const bool frames_are_dqs =
       !options.implicit && options.method == SkinningMethod::kDualQuaternion;
   if (options.quality) {
-    quality.emplace(mesh, skinner.trackingMesh()
-                              ? skinner.trackingMesh()->rings.representative
-                              : coincidentVertexGroups(mesh.positions));
+    // Per bone's part: where on the character the frames depart from DQS.
+    SkinQualityOptions quality_options;
+    quality_options.vertex_parts = partitionMesh(rig).vertex_joint;
+    quality.emplace(mesh,
+                    skinner.trackingMesh()
+                        ? skinner.trackingMesh()->rings.representative
+                        : coincidentVertexGroups(mesh.positions),
+                    quality_options);
     result.rest_self_intersections =
         static_cast<int>(quality->restPairs().size());
     if (!frames_are_dqs) {

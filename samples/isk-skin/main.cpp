@@ -404,11 +404,13 @@ std::unique_ptr<FrameSkinner> makeSkinner(const Options& options,
 }
 
 // The summary lines of the run on stderr.
-void sayHowItWent(const Options& options, const isk::AnimationClip& clip,
-                  const FrameSkinner& skinner, const RunResult& result,
-                  const IsoDriftProbe* probe) {
+void sayHowItWent(const Options& options, const isk::Rig& rig,
+                  const isk::AnimationClip& clip, const FrameSkinner& skinner,
+                  const RunResult& result, const IsoDriftProbe* probe) {
   std::cerr << skin::formatRunSummary(options, clip.name, skinner.describe(),
                                       result);
+  if (options.method == "implicit")
+    std::cerr << skin::formatPartsSummary(result, rig.skeleton);
   if (probe) {
     std::cerr << skin::formatIsoDriftSummary(probe->describe(), probe->drift());
   }
@@ -447,7 +449,7 @@ int run(const Options& options) {
   if (!options.report.empty()) {
     writeReport(options, rig, clip, *skinner, precompute, result, probe.get());
   }
-  sayHowItWent(options, clip, *skinner, result, probe.get());
+  sayHowItWent(options, rig, clip, *skinner, result, probe.get());
   return 0;
 }
 

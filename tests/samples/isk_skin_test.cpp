@@ -12,6 +12,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -939,6 +940,54 @@ TEST(IskSkinTest, UntrackedJointsAreReported) {
   EXPECT_GT(untracked, 0);
   EXPECT_EQ(hand["tracked_vertices"].get<int>(),
             plain["tracked_vertices"].get<int>() - untracked);
+}
+
+// quality.parts: every bone's part with its edge strain, DQS's and its
+// largest distance from DQS, the largest excess over DQS's strain first;
+// the console names the first parts. DQS frames depart nowhere.
+TEST(IskSkinTest, PartsAreReportedByTheirExcessStrain) {
+  for (const std::string method : {"implicit", "dqs"}) {
+    SCOPED_TRACE(method);
+    ScopedTempDir dir;
+    const std::vector<std::string> args = {
+        "builtin:arm", "--clip", "bend:120", "--frames",         "4",
+        "--method",    method,   "--report", dir / "report.json"};
+    const RunOutput run = runIskSkin(args);
+    ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+    const nlohmann::json parts =
+        readReport(dir / "report.json")["quality"]["parts"];
+    ASSERT_TRUE(parts.is_array());
+    ASSERT_GE(parts.size(), 3u) << parts.dump(2);
+    std::set<std::string> joints;
+    double previous = 1e30;
+    for (const nlohmann::json& p : parts) {
+      joints.insert(p["joint"].get<std::string>());
+      EXPECT_GT(p["edges"].get<int>(), 0);
+      const double excess = p["edge_strain_mean"].get<double>() -
+                            p["dqs_edge_strain_mean"].get<double>();
+      EXPECT_LE(excess, previous + 1e-12) << parts.dump(2);
+      previous = excess;
+      if (method == "dqs") {
+        EXPECT_EQ(excess, 0);
+        EXPECT_EQ(p["dqs_distance_max"].get<double>(), 0);
+      }
+    }
+    EXPECT_EQ(joints.size(), parts.size());
+    EXPECT_TRUE(joints.count("elbow")) << parts.dump(2);
+    const bool named =
+        run.output.find(
+            "parts whose edge strain exceeds "
+            "DQS's most: " +
+            parts[0]["joint"].get<std::string>()) != std::string::npos;
+    if (method == "implicit") {
+      EXPECT_GT(parts[0]["edge_strain_mean"].get<double>(),
+                parts[0]["dqs_edge_strain_mean"].get<double>());
+      EXPECT_TRUE(named) << run.output;
+    } else {
+      EXPECT_EQ(run.output.find("parts whose edge strain"), std::string::npos)
+          << run.output;
+    }
+  }
 }
 
 TEST(IskSkinTest, OperatorChoiceChangesTheIsoDrift) {

@@ -1,7 +1,8 @@
 // The per-frame quality measures: each measure on frames built to have a
 // known value (rest pose, uniform scale, one vertex pushed out, a pop in the
 // third frame), the contact region, the summary's worst frame, the measures
-// on every asset and procedural rig at rest and bent, and bad input.
+// on every asset and procedural rig at rest and bent, the per-part
+// measures, and bad input.
 #include "isk/tools/skin_quality.hpp"
 
 #include <gtest/gtest.h>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "isk/core/error.hpp"
+#include "isk/fields/bone_partition.hpp"
 #include "isk/rig/animation.hpp"
 #include "isk/rig/pose.hpp"
 #include "isk/skinning/cpu_skinning.hpp"
@@ -159,6 +161,71 @@ TEST(SkinQuality, SummaryPicksTheWorstFrame) {
   EXPECT_EQ(summarizeQuality({}).worst_frame, -1);
 }
 
+// A vertex of the cylinder's surface half way along its axis (+x), pushed
+// out radially by half its radius; `vertex` receives it.
+Matrix3Xf pushedOut(const Mesh& mesh, int* vertex) {
+  const float mid_x = 0.5f * (mesh.positions.col(0).minCoeff() +
+                              mesh.positions.col(0).maxCoeff());
+  float best = 1e30f;
+  for (int i = 0; i < mesh.vertexCount(); ++i) {
+    const Eigen::RowVector3f p = mesh.positions.row(i);
+    const float d =
+        std::abs(p.x() - mid_x) - Eigen::Vector2f(p.y(), p.z()).norm();
+    if (d < best) best = d, *vertex = i;
+  }
+  Matrix3Xf out = mesh.positions;
+  out.row(*vertex) +=
+      0.5f * Eigen::RowVector3f(0, out(*vertex, 1), out(*vertex, 2));
+  return out;
+}
+
+TEST(SkinQuality, PartsShowWhereTheFrameDepartsFromDqs) {
+  const Rig rig = makeCylinderRig();
+  const Mesh& mesh = rig.mesh;
+  SkinQualityOptions options;
+  options.vertex_parts = partitionMesh(rig).vertex_joint;
+  SkinQuality quality(mesh, groupsOf(mesh), options);
+  int v = -1;
+  const Matrix3Xf bumped = pushedOut(mesh, &v);
+  const int bumped_part = options.vertex_parts[v];
+  ASSERT_GE(bumped_part, 0);
+  const FrameQuality q = quality.measure(bumped, &mesh.positions);
+  ASSERT_FALSE(q.parts.empty());
+  bool found = false;
+  for (size_t k = 0; k < q.parts.size(); ++k) {
+    const PartQuality& p = q.parts[k];
+    SCOPED_TRACE("part " + std::to_string(p.part));
+    if (k > 0) EXPECT_GT(p.part, q.parts[k - 1].part);
+    EXPECT_GT(p.edges, 0);
+    EXPECT_EQ(p.dqs_edge_strain_mean, 0);  // the rest pose is the DQS frame
+    if (p.part == bumped_part) {
+      found = true;
+      EXPECT_GT(p.edge_strain_mean, 0);
+      const double moved =
+          (bumped.row(v) - mesh.positions.row(v)).norm() / quality.diagonal();
+      EXPECT_NEAR(p.dqs_distance_max, moved, 1e-6);
+      EXPECT_NEAR(p.dqs_distance_max, q.dqs_distance_max, 1e-9);
+    } else {
+      EXPECT_EQ(p.dqs_distance_max, 0);
+    }
+  }
+  EXPECT_TRUE(found);
+  // Over a clip: the means over the frames, the largest distance.
+  const FrameQuality rest = quality.measure(mesh.positions, &mesh.positions);
+  for (const PartQuality& p : rest.parts) EXPECT_EQ(p.edge_strain_mean, 0);
+  const QualitySummary summary = summarizeQuality({q, rest});
+  ASSERT_EQ(summary.parts.size(), q.parts.size());
+  for (size_t k = 0; k < q.parts.size(); ++k) {
+    EXPECT_EQ(summary.parts[k].part, q.parts[k].part);
+    EXPECT_NEAR(summary.parts[k].edge_strain_mean,
+                0.5 * q.parts[k].edge_strain_mean, 1e-12);
+    EXPECT_EQ(summary.parts[k].dqs_distance_max, q.parts[k].dqs_distance_max);
+  }
+  // Without parts, none are measured.
+  SkinQuality plain(mesh, groupsOf(mesh));
+  EXPECT_TRUE(plain.measure(bumped, &mesh.positions).parts.empty());
+}
+
 TEST(SkinQuality, BadSizesAreClearErrors) {
   const Rig rig = makeCylinderRig();
   EXPECT_THROW(SkinQuality(rig.mesh, std::vector<int>(3, 0)), Error);
@@ -171,6 +238,19 @@ TEST(SkinQuality, BadSizesAreClearErrors) {
   EXPECT_THROW(quality.measure(rig.mesh.positions, &wrong), Error);
   const std::vector<uint8_t> flags(2, 0);
   EXPECT_THROW(quality.measure(rig.mesh.positions, nullptr, &flags), Error);
+  SkinQualityOptions few;
+  few.vertex_parts.assign(3, 0);
+  EXPECT_THROW(SkinQuality(rig.mesh, groupsOf(rig.mesh), few), Error);
+  SkinQualityOptions negative;
+  negative.vertex_parts.assign(rig.mesh.vertexCount(), 0);
+  negative.vertex_parts[5] = -2;
+  try {
+    SkinQuality(rig.mesh, groupsOf(rig.mesh), negative);
+    ADD_FAILURE() << "a part id of -2 was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 5"), std::string::npos)
+        << e.what();
+  }
 }
 
 // The rest pose measures nothing new on every rig, and DQS of a bend
@@ -202,6 +282,24 @@ void checkRestAndBend(const Rig& rig, const std::string& name,
   // A bone of an asset may carry no vertex (nothing to strain).
   if (bends_every_part) EXPECT_GT(l.edge_strain_max, 0);
   EXPECT_TRUE(l.jitter_max.has_value());
+
+  // Per part: DQS against itself departs nowhere; LBS's parts hold its
+  // largest distance from DQS (contacts included: at least the far one).
+  SkinQualityOptions options;
+  options.vertex_parts = partitionMesh(rig).vertex_joint;
+  SkinQuality by_part(rig.mesh, groupsOf(rig.mesh), options);
+  const FrameQuality pd = by_part.measure(dqs.positions(), &dqs.positions());
+  ASSERT_FALSE(pd.parts.empty());
+  for (const PartQuality& p : pd.parts) {
+    EXPECT_EQ(p.edge_strain_mean, p.dqs_edge_strain_mean);
+    EXPECT_EQ(p.dqs_distance_max, 0);
+  }
+  const FrameQuality pl = by_part.measure(lbs.positions(), &dqs.positions());
+  double largest = 0;
+  for (const PartQuality& p : pl.parts)
+    largest = std::max(largest, p.dqs_distance_max);
+  EXPECT_GE(largest, pl.dqs_distance_max);
+  if (bends_every_part) EXPECT_GT(largest, 0);
 }
 
 TEST(SkinQuality, RestAndBendOnProceduralRigs) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <map>
 #include <string>
 #include <unordered_map>
 
@@ -75,6 +76,20 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
                       std::to_string(groups_[v]) + ", not a vertex index");
     }
   }
+  const std::vector<int>& parts = options_.vertex_parts;
+  if (!parts.empty() && parts.size() != vertex_count) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "SkinQuality: " + std::to_string(parts.size()) +
+                    " vertex parts for " + std::to_string(vertex_count) +
+                    " vertices");
+  }
+  for (size_t v = 0; v < parts.size(); ++v) {
+    if (parts[v] < -1) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "SkinQuality: vertex " + std::to_string(v) + " has part " +
+                      std::to_string(parts[v]) + " (expected -1 or more)");
+    }
+  }
   diagonal_ = boundingBoxDiagonal(rest.positions);
   rest_pairs_ = pairsOf(rest.positions, triangles_, groups_);
   rest_volume_ = enclosedVolume(rest.positions, triangles_);
@@ -107,6 +122,20 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
     }
   }
   edges_ = std::move(kept);
+
+  // Each part's edges: those with an end in it, once.
+  if (!parts.empty()) {
+    std::map<int, std::vector<int>> by_part;
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      const int pa = parts[edges_[e].first], pb = parts[edges_[e].second];
+      if (pa >= 0) by_part[pa].push_back(static_cast<int>(e));
+      if (pb >= 0 && pb != pa) by_part[pb].push_back(static_cast<int>(e));
+    }
+    for (auto& [part, edges] : by_part) {
+      part_ids_.push_back(part);
+      part_edges_.push_back(std::move(edges));
+    }
+  }
 }
 
 std::vector<uint8_t> SkinQuality::contactRegion(
@@ -196,6 +225,37 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
   if (!edges_.empty()) q.edge_strain_mean = strain_sum / edges_.size();
 
   const Matrix3Xf& reference = dqs ? *dqs : positions;
+  if (!part_ids_.empty()) {
+    auto strainOf = [&](const Matrix3Xf& x, int e) {
+      const auto [a, b] = edges_[e];
+      return std::abs((x.row(a) - x.row(b)).norm() / edge_rest_lengths_[e] -
+                      1.0);
+    };
+    std::map<int, size_t> index;
+    q.parts.resize(part_ids_.size());
+    for (size_t k = 0; k < part_ids_.size(); ++k) {
+      PartQuality& part = q.parts[k];
+      part.part = part_ids_[k];
+      part.edges = static_cast<int>(part_edges_[k].size());
+      for (const int e : part_edges_[k]) {
+        part.edge_strain_mean += strainOf(positions, e);
+        part.dqs_edge_strain_mean += strainOf(reference, e);
+      }
+      part.edge_strain_mean /= part.edges;
+      part.dqs_edge_strain_mean /= part.edges;
+      index[part.part] = k;
+    }
+    const double inverse = diagonal_ > 0 ? 1.0 / diagonal_ : 1.0;
+    for (size_t v = 0; v < vertex_count; ++v) {
+      const int part = options_.vertex_parts[v];
+      if (groups_[v] != static_cast<int>(v) || part < 0) continue;
+      const auto it = index.find(part);
+      if (it == index.end()) continue;
+      double& largest = q.parts[it->second].dqs_distance_max;
+      largest = std::max(
+          largest, (positions.row(v) - reference.row(v)).norm() * inverse);
+    }
+  }
   const std::vector<std::pair<int, int>> reference_new =
       dqs ? notIn(pairsOf(*dqs, triangles_, groups_), rest_pairs_)
           : last_new_pairs_;
@@ -289,6 +349,26 @@ QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames) {
     }
   }
   if (!frames.empty()) s.edge_strain_mean = strain_sum / frames.size();
+
+  // Per part: the means of the frames' means, the largest distance.
+  std::map<int, std::pair<PartQuality, int>> parts;
+  for (const FrameQuality& q : frames) {
+    for (const PartQuality& p : q.parts) {
+      auto& [sum, count] = parts[p.part];
+      sum.part = p.part;
+      sum.edges = p.edges;
+      sum.edge_strain_mean += p.edge_strain_mean;
+      sum.dqs_edge_strain_mean += p.dqs_edge_strain_mean;
+      sum.dqs_distance_max = std::max(sum.dqs_distance_max, p.dqs_distance_max);
+      ++count;
+    }
+  }
+  for (auto& [id, entry] : parts) {
+    PartQuality p = entry.first;
+    p.edge_strain_mean /= entry.second;
+    p.dqs_edge_strain_mean /= entry.second;
+    s.parts.push_back(p);
+  }
   return s;
 }
 

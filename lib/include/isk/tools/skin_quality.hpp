@@ -16,7 +16,10 @@
 //     from any contact, over the rest bounding-box diagonal;
 //   - temporal jitter: the second difference of each vertex's positions
 //     over three frames minus that of its DQS positions, over the diagonal;
-//   - lost vertices (the tracking's, given by the caller).
+//   - lost vertices (the tracking's, given by the caller);
+//   - optionally, per part of the mesh (a bone's part: BonePartition's
+//     vertex_joint), the edge strain against DQS's and the largest distance
+//     from DQS: where on the character a deformation departs from skinning.
 #pragma once
 
 #include <cstdint>
@@ -35,6 +38,23 @@ struct SkinQualityOptions {
   // flags (stopped at a contact by the tracking) or a corner of a triangle
   // that the DQS frame makes intersect anew.
   float contact_radius = 0.05f;
+  // Optional, #V (or empty: no per-part measures): the part of each vertex,
+  // a non-negative id (a joint index: BonePartition::vertex_joint) or -1
+  // for none. Each frame then measures every part (FrameQuality::parts).
+  std::vector<int> vertex_parts;
+};
+
+// One part's measures (SkinQualityOptions::vertex_parts): of a frame, or
+// over a clip (summarizeQuality: means over the frames, the largest
+// distance).
+struct PartQuality {
+  int part = -1;
+  int edges = 0;  // welded edges with an end in the part (counted once)
+  double edge_strain_mean = 0;      // the frame's, over those edges
+  double dqs_edge_strain_mean = 0;  // the DQS frame's, same edges
+  // Largest distance of the part's vertices from their DQS positions
+  // (contacts included), over the rest diagonal.
+  double dqs_distance_max = 0;
 };
 
 struct FrameQuality {
@@ -53,6 +73,9 @@ struct FrameQuality {
   // Unset for the first two frames.
   std::optional<double> jitter_mean, jitter_max;
   int lost_vertices = 0;
+  // With SkinQualityOptions::vertex_parts: each part with an edge, by
+  // ascending id (without a DQS frame, DQS's figures are the frame's own).
+  std::vector<PartQuality> parts;
 };
 
 // The measures summed up over a clip.
@@ -71,6 +94,9 @@ struct QualitySummary {
   // The frame with the most new intersecting pairs; on a tie (or none),
   // the one whose volume is furthest from the rest volume; then the first.
   int worst_frame = -1;
+  // Per part (the frames' parts): mean over the frames of the strains, the
+  // largest distance; by ascending id.
+  std::vector<PartQuality> parts;
 };
 
 QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames);
@@ -82,7 +108,8 @@ class SkinQuality {
   // `rest` the rest mesh; `vertex_groups` (#V, group ids that are vertex
   // indices: isk::coincidentVertexGroups or a tracking mesh's
   // representatives) weld seam duplicates. Counts the rest pose's
-  // intersecting pairs. Throws isk::Error(kInvalidArgument) on a bad size.
+  // intersecting pairs. Throws isk::Error(kInvalidArgument) on a bad size
+  // (of the groups or of options.vertex_parts, or a part id below -1).
   SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
               SkinQualityOptions options = {});
 
@@ -121,6 +148,9 @@ class SkinQuality {
   std::vector<std::pair<int, int>> rest_pairs_, last_pairs_, last_new_pairs_;
   std::vector<std::pair<int, int>> edges_;  // welded, unique
   std::vector<float> edge_rest_lengths_;
+  // Per part with an edge (ascending id): the edges with an end in it.
+  std::vector<int> part_ids_;
+  std::vector<std::vector<int>> part_edges_;
   double rest_volume_ = 0, rest_covered_volume_ = 0;
   bool volume_meaningful_ = false;
   float diagonal_ = 0;
