@@ -775,6 +775,23 @@ def summary_section(cases):
     return lines
 
 
+def parts_line(run, count=3):
+    """The parts (bones' parts) whose mean edge strain exceeds DQS's most in
+    an implicit run's report (quality.parts, largest excess first), or ''."""
+    shown = []
+    for p in (quality_of(run).get("parts") or [])[:count]:
+        if not p["edge_strain_mean"] > p["dqs_edge_strain_mean"]:
+            break
+        shown.append(f"{p['joint']} {fmt_strain(p['edge_strain_mean'])} "
+                     f"(DQS {fmt_strain(p['dqs_edge_strain_mean'])}, up to "
+                     f"{pct(p['dqs_distance_max'])} from DQS)")
+    if not shown:
+        return ""
+    return ("Parts whose edge strain exceeds DQS's most (implicit default, "
+            "mean over the frames; `isk-skin --report`'s quality.parts): "
+            + "; ".join(shown) + ".")
+
+
 def case_section(case, images_rel, pictures_note):
     lines = [f'<a id="{case["slug"]}"></a>', "",
              f"### {case_title(case)}", ""]
@@ -796,6 +813,9 @@ def case_section(case, images_rel, pictures_note):
                                for k in IMPLICIT_KEYS])
     lines += table(["target"] + [METHOD_LABEL[k] for k in IMPLICIT_KEYS],
                    rows, ["l", "l", "l", "l"])
+    parts = parts_line(runs.get(DEFAULT_IMPLICIT))
+    if parts:
+        lines += [parts, ""]
     if case["picture"]:
         picture = case.get("picture_file")
         if picture:

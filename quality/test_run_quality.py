@@ -306,6 +306,25 @@ class Render(unittest.TestCase):
                 widths = {l.replace("\\|", "").count("|") for l in lines}
                 self.assertEqual(len(widths), 1, block)
 
+    def test_parts_line(self):
+        run = ok([frame(new=0)] * 3)
+        self.assertEqual(rq.parts_line(run), "")  # no parts in the report
+        run["report"]["quality"]["parts"] = [
+            {"joint": "middle_01_r", "edges": 879, "edge_strain_mean": 0.2658,
+             "dqs_edge_strain_mean": 0.0344, "dqs_distance_max": 0.0064},
+            {"joint": "pelvis", "edges": 433, "edge_strain_mean": 0.1,
+             "dqs_edge_strain_mean": 0.05, "dqs_distance_max": 0.001},
+            {"joint": "head", "edges": 500, "edge_strain_mean": 0.01,
+             "dqs_edge_strain_mean": 0.01, "dqs_distance_max": 0.0}]
+        line = rq.parts_line(run)
+        self.assertIn("middle_01_r 0.266 (DQS 0.034, up to 0.64% from DQS); "
+                      "pelvis 0.100 (DQS 0.050, up to 0.10% from DQS).", line)
+        self.assertNotIn("head", line)  # no excess over DQS's strain
+        self.assertEqual(rq.parts_line(failed()), "")
+        case = make_case_with_runs()
+        case["runs"][rq.DEFAULT_IMPLICIT] = run
+        self.assertIn(line, rq.case_section(case, "images", None))
+
     def test_precision(self):
         self.assertEqual(rq.fmt_volume(0.912345), "0.9123")
         self.assertEqual(rq.fmt_strain(0.12345), "0.123")
