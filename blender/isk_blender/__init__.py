@@ -312,6 +312,7 @@ class ISK_OT_build(bpy.types.Operator):
             volume_restore=settings.volume_restore,
             dislocation_guard=settings.dislocation_guard,
             base_skinning=settings.base_skinning, layers=settings.layers,
+            rigid_pieces=settings.rigid_pieces,
             cache_dir=cache_folder(settings), progress=progress)
 
 
@@ -402,6 +403,14 @@ class IskSettings(bpy.types.PropertyGroup):
                     "skinning given back where a closed part lost volume "
                     "(0: off; near another piece of the mesh, back to skinning "
                     "at most)")
+    rigid_pieces: EnumProperty(
+        name="Rigid pieces", default='auto',
+        description="Pieces of the mesh bound wholly to one bone (a "
+                    "robot's plates) stay where skinning puts them",
+        items=[('auto', "Auto", "Rigid when such pieces hold half the "
+                                "mesh or more"),
+               ('rigid', "Rigid", "Always rigid"),
+               ('tracked', "Tracked", "Tracked like the skin (the paper)")])
     layers: BoolProperty(
         name="Clothes layers", default=True,
         description="Leave layers of clothes (meshes that wrap a bone "
@@ -462,6 +471,7 @@ class ISK_PT_panel(bpy.types.Panel):
             box.prop(settings, "dislocation_guard")
             box.prop(settings, "volume_restore")
             box.prop(settings, "layers")
+            box.prop(settings, "rigid_pieces")
             layout.prop(settings, "cache_folder")
         layout.prop(settings, "max_influences")
         row = layout.row()

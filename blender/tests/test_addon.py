@@ -246,7 +246,7 @@ def check_panel(addon, obj):
                  "contact_angle", "smoothing_steps", "relaxation",
                  "skinned_ring_relaxation", "crease_gate", "dislocation_guard",
                  "volume_restore",
-                 "layers",
+                 "layers", "rigid_pieces",
                  "isk.build", "isk.remove",
                  f"Contacts: {obj.isk.contact_count}"):
         check(item in items, f"the panel lacks {item}")

@@ -13,6 +13,7 @@ ArrayLike = npt.ArrayLike
 Device = str  # "opencl", "opencl:N", "gpu", "cpu" or "reference"
 Operator = Literal["union", "blend", "bulge"]
 Method = Literal["dqs", "lbs"]
+RigidPieces = Literal["auto", "rigid", "tracked"]
 
 class Error(RuntimeError):
     """An isk::Error; .code names its kind."""
@@ -102,6 +103,7 @@ class ImplicitSkinner:
         dislocation_guard: Optional[bool] = None,
         base_skinning: Method = "dqs",
         layers: bool = True,
+        rigid_pieces: RigidPieces = "auto",
         cache_dir: Optional[str] = None,
         progress: Optional[Callable[[str, float], object]] = None,
     ) -> None: ...

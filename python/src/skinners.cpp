@@ -126,7 +126,8 @@ class PyImplicitSkinner {
       std::optional<bool> skinned_ring_relaxation,
       std::optional<bool> crease_gate, std::optional<float> volume_restore,
       std::optional<bool> dislocation_guard, const std::string& base_skinning,
-      bool layers, std::optional<std::string> cache_dir, py::object progress)
+      bool layers, const std::string& rigid_pieces,
+      std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
@@ -180,6 +181,10 @@ class PyImplicitSkinner {
     if (dislocation_guard) tracking.dislocation_guard = *dislocation_guard;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
+    if (!parseRigidPieces(rigid_pieces, &options.fields.rigid_pieces)) {
+      fail("rigid_pieces", "expected 'auto', 'rigid' or 'tracked', got '" +
+                               rigid_pieces + "'");
+    }
     if (cache_dir) {
       options.fields.cache = true;
       options.fields.cache_folder = *cache_dir;
@@ -363,7 +368,8 @@ void registerSkinners(py::module_& m) {
                     std::optional<bool>, std::optional<bool>,
                     std::optional<bool>, std::optional<float>,
                     std::optional<bool>, const std::string&, bool,
-                    std::optional<std::string>, py::object>(),
+                    const std::string&, std::optional<std::string>,
+                    py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
@@ -378,6 +384,7 @@ void registerSkinners(py::module_& m) {
            py::arg("volume_restore") = py::none(),
            py::arg("dislocation_guard") = py::none(),
            py::arg("base_skinning") = "dqs", py::arg("layers") = true,
+           py::arg("rigid_pieces") = "auto",
            py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))
       .def("positions", &PyImplicitSkinner::positions)

@@ -149,6 +149,10 @@ def test_bad_options_are_named():
     with pytest.raises(isk.InvalidArgumentError,
                        match="untracked_joints: expected a list"):
         isk.ImplicitSkinner(rig, untracked_joints="wrist")
+    with pytest.raises(isk.InvalidArgumentError,
+                       match="rigid_pieces: expected 'auto', 'rigid' or "
+                             "'tracked', got 'bolted'"):
+        isk.ImplicitSkinner(rig, rigid_pieces="bolted")
     with pytest.raises(isk.InvalidArgumentError, match="tracking"):
         isk.ImplicitSkinner(rig, sigma=2.0)
     with pytest.raises(isk.InvalidArgumentError, match="tracking"):

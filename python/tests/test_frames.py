@@ -189,6 +189,74 @@ def test_untracked_joints_stay_on_skinning():
         assert not np.array_equal(untracked[~hand], dqs[~hand]), device
 
 
+def plated_arm():
+    """The procedural arm with a box bolted beside its forearm near the
+    elbow, bound wholly to the elbow's joint: a rigid piece (8 vertices)."""
+    rig = isk.builtin_rig("arm")
+    names = rig.joint_names
+    elbow, wrist = names.index("elbow"), names.index("wrist")
+    binds = np.linalg.inv(rig.inverse_bind_matrices)
+    a, b = binds[elbow][:3, 3], binds[wrist][:3, 3]
+    axis = (b - a) / np.linalg.norm(b - a)
+    side = np.cross(axis, [0.0, 0.0, 1.0])
+    if np.linalg.norm(side) < 0.1:
+        side = np.cross(axis, [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    third = np.cross(axis, side)
+    at = a + 0.25 * (b - a)
+    rest = rig.rest_positions
+    offset = rest - at
+    along = offset @ axis
+    near = np.abs(along) < 0.1 * np.linalg.norm(b - a)
+    radius = np.linalg.norm(offset[near] - np.outer(along[near], axis),
+                            axis=1).max()
+    half = 0.2 * np.linalg.norm(b - a)
+    centre = at + (radius + half) * side
+    corners = np.array([centre + half * (i * axis + j * side + k * third)
+                        for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)],
+                       dtype=np.float32)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6),
+             (0, 2, 6, 4), (1, 5, 7, 3)]
+    box = [(q[0], q[1], q[2]) for q in quads] + [(q[0], q[2], q[3])
+                                                 for q in quads]
+    v = rig.vertex_count
+    triangles = np.vstack([rig.triangles, np.array(box) + v]).astype(np.int32)
+    indices, weights = rig.weight_arrays()
+    box_indices = np.zeros((8, indices.shape[1]), dtype=indices.dtype)
+    box_indices[:, 0] = elbow
+    box_weights = np.zeros((8, weights.shape[1]), dtype=weights.dtype)
+    box_weights[:, 0] = 1.0
+    plated = isk.Rig.from_arrays(
+        np.vstack([rest, corners]), triangles, rig.parents,
+        rig.inverse_bind_matrices, np.vstack([indices, box_indices]),
+        np.vstack([weights, box_weights]), joint_names=names)
+    plate = np.arange(plated.vertex_count) >= v
+    return plated, plate
+
+
+def test_rigid_pieces_stay_where_skinning_puts_them():
+    # A box bound wholly to the elbow's joint beside the forearm: kept rigid
+    # ("rigid") it is DQS's on the reference (the OpenCL frame within float
+    # rounding of the march elsewhere); tracked, the bend moves it; "auto"
+    # tracks it here (8 vertices: far from half the mesh).
+    rig, plate = plated_arm()
+    pose = rig.bend_pose(90)
+    for device in ("reference", "opencl"):
+        dqs = isk.GeometricSkinner(rig, method="dqs",
+                                   device=device).deform(pose)[0]
+        frames = {mode: isk.ImplicitSkinner(
+            rig, device=device, rigid_pieces=mode).deform(pose)[0]
+            for mode in ("auto", "rigid", "tracked")}
+        if device == "reference":
+            assert np.array_equal(frames["rigid"][plate], dqs[plate])
+        else:
+            assert np.abs(frames["rigid"][plate] - dqs[plate]).max() < (
+                1e-4 * rig.bounding_box_diagonal)
+        assert not np.allclose(frames["tracked"][plate], dqs[plate]), device
+        assert np.array_equal(frames["auto"], frames["tracked"]), device
+        assert not np.array_equal(frames["rigid"][~plate], dqs[~plate])
+
+
 def test_layers_option_reaches_the_fit():
     # The sleeved arm's sleeve is a layer: fitted with the skin
     # (layers=False) the frames differ; the plain arm has none: the same

@@ -230,6 +230,13 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "fraction of the mesh's size)")
           ->check(CLI::IsMember({"float", "half"}))
           ->capture_default_str(),
+      app.add_option("--rigid-pieces", options.rigid_pieces,
+                     "implicit: pieces of the mesh bound wholly to one joint "
+                     "(a robot's plates) stay where skinning puts them: "
+                     "auto (when they hold half the mesh or more), rigid, "
+                     "or tracked (the paper)")
+          ->check(CLI::IsMember({"auto", "rigid", "tracked"}))
+          ->capture_default_str(),
       app.add_flag("!--no-layers", options.skin_only,
                    "implicit: fit the layers around the skin (clothes, "
                    "found by bone_partition.hpp's rule) with it, instead of "
@@ -510,6 +517,7 @@ ImplicitFieldsOptions fieldOptions(
   if (options.grid_precision == "half")
     field_options.grid_precision = GridPrecision::kHalf;
   if (!options.skin_only) field_options.sampling.skin_only = false;
+  parseRigidPieces(options.rigid_pieces, &field_options.rigid_pieces);
   // Fields are cached on disk (ISK_CACHE_DIR; "off" disables it).
   field_options.cache = true;
   return field_options;

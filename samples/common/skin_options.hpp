@@ -62,6 +62,8 @@ struct Options {
   // Surface tracking (--method implicit); defaults are the paper's.
   SurfaceTrackingOptions tracking;
   std::string grid_precision = "float";  // implicit: "float" or "half"
+  // implicit, --rigid-pieces: "auto", "rigid" or "tracked" (RigidPieces).
+  std::string rigid_pieces = "auto";
   bool skin_only = true;  // implicit: layers left out of the fit (--no-layers)
   bool tracking_given = false;
 };

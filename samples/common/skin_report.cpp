@@ -1,5 +1,6 @@
 #include "skin_report.hpp"
 
+#include <algorithm>
 #include <iomanip>
 #include <set>
 #include <sstream>
@@ -163,12 +164,16 @@ nlohmann::json implicitFieldsSection(const ImplicitFields& fields,
   // The joints whose parts stay on skinning, by name, and their vertices.
   std::set<std::string> untracked_joints;
   for (const int v : fields.untracked_vertices) {
+    if (std::binary_search(fields.rigid_piece_vertices.begin(),
+                           fields.rigid_piece_vertices.end(), v))
+      continue;
     const int j = fields.partition.vertex_joint[v];
     if (j >= 0 && j < skeleton.jointCount())
       untracked_joints.insert(skeleton.joints[j].name);
   }
   section["untracked_joints"] = untracked_joints;
   section["untracked_vertices"] = fields.untracked_vertices.size();
+  section["rigid_piece_vertices"] = fields.rigid_piece_vertices.size();
   section["build_ms"] = drift.build_ms;
   section["upload_ms"] = drift.upload_ms;
   section["operator_tables_mib"] = composition.tableBytes() / kMiB;
@@ -219,6 +224,7 @@ nlohmann::json makeReport(const Options& options, const Rig& rig,
   if (implicit_fields) report["implicit"] = *implicit_fields;
   if (options.method == "implicit") {
     report["implicit"]["tracking"] = trackingSection(options.tracking);
+    report["implicit"]["rigid_pieces"] = options.rigid_pieces;
     if (device.tracking_mesh) {
       report["implicit"]["relaxation_weights"] =
           device.tracking_mesh->relaxation.describe();

@@ -942,6 +942,30 @@ TEST(IskSkinTest, UntrackedJointsAreReported) {
             plain["tracked_vertices"].get<int>() - untracked);
 }
 
+// --rigid-pieces: the mode goes to the report with the vertices kept rigid
+// (the arm has no rigid piece: none whatever the mode); a mode it does not
+// know is a usage error naming it.
+TEST(IskSkinTest, RigidPiecesAreReported) {
+  for (const std::string mode : {"auto", "rigid", "tracked"}) {
+    ScopedTempDir dir;
+    const std::vector<std::string> args = {
+        "builtin:arm",       "--frames",       "2",
+        "--method",          "implicit",       "--report",
+        dir / "report.json", "--rigid-pieces", mode};
+    const RunOutput run = runIskSkin(args);
+    ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+    const nlohmann::json implicit = readReport(dir / "report.json")["implicit"];
+    EXPECT_EQ(implicit["rigid_pieces"], mode);
+    EXPECT_EQ(implicit["rigid_piece_vertices"].get<int>(), 0);
+    EXPECT_EQ(implicit["untracked_vertices"].get<int>(), 0);
+  }
+  const std::vector<std::string> bad = {"builtin:arm", "--method", "implicit",
+                                        "--rigid-pieces", "bolted"};
+  const RunOutput run = runIskSkin(bad);
+  EXPECT_NE(run.exit_code, 0) << describe(bad, run);
+  EXPECT_NE(run.output.find("bolted"), std::string::npos) << describe(bad, run);
+}
+
 // quality.parts: every bone's part with its edge strain, DQS's and its
 // largest distance from DQS, the largest excess over DQS's strain first;
 // the console names the first parts. DQS frames depart nowhere.

@@ -1,8 +1,10 @@
 #include "isk/fields/implicit_fields.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <filesystem>
+#include <iterator>
 #include <map>
 #include <set>
 #include <string>
@@ -11,6 +13,7 @@
 
 #include "core/parallel_for.hpp"
 #include "isk/core/error.hpp"
+#include "isk/core/one_ring.hpp"
 #include "isk/core/stopwatch.hpp"
 #include "isk/core/surface_orientation.hpp"
 #include "isk/fields/field_cache.hpp"
@@ -317,6 +320,30 @@ std::vector<int> untrackedVertices(const Rig& rig,
   return out;
 }
 
+// untracked_joints' vertices and the rigid pieces' (when the mode keeps
+// them rigid), merged ascending; `rigid` receives the latter.
+std::vector<int> untrackedAndRigid(const Rig& rig,
+                                   const BonePartition& partition,
+                                   const ImplicitFieldsOptions& options,
+                                   std::vector<int>* rigid) {
+  std::vector<int> out =
+      untrackedVertices(rig, partition, options.untracked_joints);
+  rigid->clear();
+  if (options.rigid_pieces == RigidPieces::kTracked) return out;
+  std::vector<int> pieces = rigidPieceVertices(rig);
+  const bool keep =
+      options.rigid_pieces == RigidPieces::kRigid ||
+      (rig.mesh.vertexCount() > 0 &&
+       static_cast<float>(pieces.size()) >=
+           kRigidCharacterShare * static_cast<float>(rig.mesh.vertexCount()));
+  if (!keep) return out;
+  *rigid = std::move(pieces);
+  std::vector<int> merged;
+  std::set_union(out.begin(), out.end(), rigid->begin(), rigid->end(),
+                 std::back_inserter(merged));
+  return merged;
+}
+
 void zeroIsoValues(const std::vector<int>& vertices,
                    std::vector<float>& iso_values) {
   for (const int v : vertices) iso_values[v] = 0.f;
@@ -329,8 +356,8 @@ void isoValuesStage(const BuildInputs& in, ImplicitFields& out) {
   in.report("iso values", 0);
   out.iso_values = computeIsoValues(out.grids, in.rig.mesh.positions,
                                     &out.composition, &out.outside_vertices);
-  out.untracked_vertices =
-      untrackedVertices(in.rig, out.partition, in.options.untracked_joints);
+  out.untracked_vertices = untrackedAndRigid(in.rig, out.partition, in.options,
+                                             &out.rigid_piece_vertices);
   zeroIsoValues(out.untracked_vertices, out.iso_values);
   if (!out.outside_vertices.empty())
     out.warnings.push_back(
@@ -401,6 +428,72 @@ void useHalfPrecisionGrids(ImplicitFields& fields, const Rig& rig) {
   fields.grids = std::move(rounded);
   fields.iso_values = std::move(iso);
   fields.outside_vertices = std::move(outside);
+}
+
+const char* rigidPiecesName(RigidPieces mode) {
+  switch (mode) {
+    case RigidPieces::kAuto:
+      return "auto";
+    case RigidPieces::kRigid:
+      return "rigid";
+    case RigidPieces::kTracked:
+      return "tracked";
+  }
+  return "?";
+}
+
+bool parseRigidPieces(const std::string& name, RigidPieces* mode) {
+  for (const RigidPieces m :
+       {RigidPieces::kAuto, RigidPieces::kRigid, RigidPieces::kTracked}) {
+    if (name == rigidPiecesName(m)) {
+      *mode = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+std::vector<int> rigidPieceVertices(const Rig& rig) {
+  const Mesh& mesh = rig.mesh;
+  const int n = mesh.vertexCount();
+  const SkinWeights& weights = rig.weights;
+  if (weights.vertexCount() != n) return {};
+  // Connected components of the welded mesh (union-find over triangles).
+  const std::vector<int> welded = weldedRepresentatives(mesh.positions);
+  std::vector<int> parent(n);
+  for (int v = 0; v < n; ++v) parent[v] = v;
+  auto root = [&](int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  auto join = [&](int a, int b) {
+    a = root(a), b = root(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  };
+  for (int v = 0; v < n; ++v) join(v, welded[v]);
+  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
+    join(mesh.triangles(f, 0), mesh.triangles(f, 1));
+    join(mesh.triangles(f, 1), mesh.triangles(f, 2));
+  }
+  // Per component: its one joint, or -1 once a vertex is blended or bound
+  // to another joint.
+  constexpr int kNone = -2;
+  std::vector<int> joint(n, kNone);
+  for (int v = 0; v < n; ++v) {
+    int bound = -1;
+    for (uint32_t i = weights.offsets[v]; i < weights.offsets[v + 1]; ++i)
+      if (weights.weights[i] >= kRigidPieceWeight)
+        bound = static_cast<int>(weights.joints[i]);
+    int& j = joint[root(v)];
+    if (bound < 0 || (j != kNone && j != bound))
+      j = -1;
+    else
+      j = bound;
+  }
+  std::vector<int> out;
+  for (int v = 0; v < n; ++v)
+    if (joint[root(v)] >= 0) out.push_back(v);
+  return out;
 }
 
 Validation fieldsFitRig(const ImplicitFields& fields, const Rig& rig) {

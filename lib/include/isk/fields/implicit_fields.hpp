@@ -24,6 +24,26 @@
 
 namespace isk {
 
+// Rigid pieces (not in the paper; docs/algorithm.md, *Rigid pieces*): a
+// connected component of the mesh welded by position whose every vertex is
+// bound to one and the same joint (weight kRigidPieceWeight or more) moves
+// rigidly with it: skinning puts it exactly where it belongs, and the march
+// could only bend it (a robot's armour plates, a mannequin's segments).
+enum class RigidPieces {
+  kAuto,     // rigid when rigid pieces hold kRigidCharacterShare or more of
+             // the mesh's vertices (a character of rigid parts); else tracked
+  kRigid,    // always left on skinning (untracked)
+  kTracked,  // tracked like the skin, as the paper does
+};
+constexpr float kRigidPieceWeight = 0.999f;
+constexpr float kRigidCharacterShare = 0.5f;
+// "auto", "rigid", "tracked".
+const char* rigidPiecesName(RigidPieces mode);
+// Parses rigidPiecesName's names; false for anything else.
+bool parseRigidPieces(const std::string& name, RigidPieces* mode);
+// The vertices of `rig`'s rigid pieces, ascending (whatever the mode).
+std::vector<int> rigidPieceVertices(const Rig& rig);
+
 // Everything buildImplicitFields can be told; the defaults are the paper's.
 struct ImplicitFieldsOptions {
   BoneSamplingOptions sampling;  // Poisson-disk samples, culling, closure
@@ -47,6 +67,8 @@ struct ImplicitFieldsOptions {
   // the other parts. For parts the fields cannot hold (a wing's membrane a
   // few triangles thick, a strap): docs/algorithm.md, *Untracked joints*.
   std::set<std::string> untracked_joints;
+  // Whether the rigid pieces (see RigidPieces) stay on skinning.
+  RigidPieces rigid_pieces = RigidPieces::kAuto;
   // On-disk cache of the built fields (isk/fields/field_cache.hpp): when true,
   // the samples, fits and baked grids are loaded from `cache_folder` (empty:
   // operatorTableCacheFolder(), i.e. $ISK_CACHE_DIR, "off" disabling it)
@@ -94,12 +116,17 @@ struct ImplicitFields {
   FieldGridSet grids;                // per field (baked: what is evaluated)
   Composition composition;           // the operator of each joint pair
   // #V: each vertex's composed field value at the bind pose, the iso value
-  // tracking brings it back to; 0 (untracked) outside every support and on
-  // the parts of options.untracked_joints.
+  // tracking brings it back to; 0 (untracked) outside every support, on
+  // the parts of options.untracked_joints and on the rigid pieces left on
+  // skinning.
   std::vector<float> iso_values;
   std::vector<int> outside_vertices;  // vertices outside every support
-  // The vertices of untracked_joints' parts (ascending; iso value 0).
+  // The vertices of untracked_joints' parts and of the rigid pieces left
+  // on skinning (ascending; iso value 0).
   std::vector<int> untracked_vertices;
+  // Of those, the rigid pieces' (ascending; empty unless options.
+  // rigid_pieces left them on skinning).
+  std::vector<int> rigid_piece_vertices;
   // One sentence each: empty or degenerate parts, re-sampled or dropped
   // fields, regularised fits, named joints without a pair, a cache file
   // that was unusable or could not be written. The library prints nothing:
