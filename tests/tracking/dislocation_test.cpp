@@ -71,6 +71,37 @@ TEST(DislocationCandidates, NoneOnALinkedChain) {
   EXPECT_TRUE(candidatesOf(rig).empty());
 }
 
+// A thin tube over three linked bones, its weights blended over most of
+// each bone (animation_with_skeleton.fbx's kind of skin): the skin beside a
+// joint is blended farther than the axis reach from it.
+CylinderRigOptions thinWideBlend() {
+  CylinderRigOptions o = longCylinder();
+  o.radius = 0.25f;  // bones of 21 radii
+  o.segments = 16;
+  return o;
+}
+
+// Linked joints make candidates only far from their joint: none on the
+// long cylinder (blends within 3 radii of the joints), some on the thin
+// tube, each farther than the axis reach from the joint its two joints
+// share.
+TEST(DislocationCandidates, LinkedJointsOnlyFarFromTheirJoint) {
+  const Rig rig = makeCylinderRig(thinWideBlend());
+  const std::vector<DislocationCandidate> candidates = candidatesOf(rig);
+  ASSERT_FALSE(candidates.empty());
+  const TransformList binds = rig.skeleton.bindGlobals();
+  for (const DislocationCandidate& c : candidates) {
+    SCOPED_TRACE("vertex " + std::to_string(c.vertex));
+    const int child = rig.skeleton.joints[c.other_joint].parent == c.home_joint
+                          ? c.other_joint
+                          : c.home_joint;
+    ASSERT_TRUE(rig.skeleton.joints[c.other_joint].parent == c.home_joint ||
+                rig.skeleton.joints[c.home_joint].parent == c.other_joint);
+    EXPECT_GT((c.rest - binds[child].translation()).norm(),
+              kDislocationAxisReach * c.radius);
+  }
+}
+
 TEST(DislocationCandidates, TheSkinBetweenTwoChains) {
   const Rig rig = twoChainTube();
   const std::vector<DislocationCandidate> candidates = candidatesOf(rig);
@@ -286,6 +317,66 @@ TEST(DislocationGuard, CrowdInstancesMatchTheirOwnSkinner) {
                 tolerance;
     EXPECT_LE(beyond, 0.01 * alone_positions.rows());
   }
+}
+
+// The thin tube turned at its second joint: the skin blended far from the
+// joint stays on skinning, nearer DQS and its volume than the march alone.
+TEST(DislocationGuard, KeepsAWideBlendOfLinkedJointsOnSkinning) {
+  const test::RigWithFields tube =
+      test::withDefaultFields(makeCylinderRig(thinWideBlend()));
+  const Rig& rig = tube.rig;
+  ImplicitSkinnerOptions off;
+  off.tracking.dislocation_guard = false;
+  CpuImplicitSkinner guarded(rig, tube.fields),
+      unguarded(rig, tube.fields, off);
+  const TransformList pose = turnSecond(rig, 45.f);
+  guarded.run(pose);
+  unguarded.run(pose);
+  const std::vector<int> dislocated =
+      dislocatedVertices(guarded.trackingMesh().dislocation_candidates, pose);
+  ASSERT_FALSE(dislocated.empty());
+  CpuSkinning dqs(rig.mesh, rig.weights, rig.skeleton.jointCount());
+  dqs.run(SkinningMethod::kDualQuaternion, pose);
+  float off_guarded = 0, off_unguarded = 0;  // the dislocated, from DQS
+  for (const int v : dislocated) {
+    EXPECT_EQ(guarded.tracking().states()[v], TrackState::kUntracked) << v;
+    off_guarded =
+        std::max(off_guarded,
+                 (guarded.positions().row(v) - dqs.positions().row(v)).norm());
+    off_unguarded = std::max(
+        off_unguarded,
+        (unguarded.positions().row(v) - dqs.positions().row(v)).norm());
+  }
+  EXPECT_LT(off_guarded, 0.5f * off_unguarded);
+  const FrameMeasures with = measure(rig, guarded.positions(), pose);
+  const FrameMeasures without = measure(rig, unguarded.positions(), pose);
+  std::cout << "thin tube turned 45 degrees: volume " << with.volume_ratio
+            << " (unguarded " << without.volume_ratio
+            << "), largest distance from DQS " << with.largest_from_dqs
+            << " (unguarded " << without.largest_from_dqs << ")\n";
+  EXPECT_LE(std::abs(with.volume_ratio - 1),
+            std::abs(without.volume_ratio - 1) + 1e-4);
+  EXPECT_LE(with.largest_from_dqs, without.largest_from_dqs);
+}
+
+// animation_with_skeleton.fbx blends most of its tube over 3 to 5 bones:
+// guarded, its clip keeps its volume within 2% of rest, as DQS's.
+TEST(DislocationGuard, KeepsAnimationWithSkeletonsVolume) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage(
+        "animation_with_skeleton.fbx's clip");
+  const Rig& rig = test::rigNamed("animation_with_skeleton.fbx");
+  CpuImplicitSkinner guarded(rig);
+  double worst = 0;
+  for (const TransformList& pose : test::clipPoses(rig, 12)) {
+    guarded.run(pose);
+    worst = std::max(
+        worst,
+        std::abs(measure(rig, guarded.positions(), pose).volume_ratio - 1));
+  }
+  std::cout << "animation_with_skeleton.fbx's clip: volume off rest by "
+            << worst << " at most\n";
+  EXPECT_LE(worst, 0.02);
 }
 
 // anim_test.x is such a rig (joint3 and joint4 are roots of their own):

@@ -16,6 +16,7 @@ std::vector<DislocationCandidate> dislocationCandidates(
   const SkinWeights& weights = rig.weights;
   const float floor = 0.01f * rig.boundingBoxDiagonal();
   const int vertex_count = rig.mesh.vertexCount();
+  const TransformList binds = skeleton.bindGlobals();
   std::vector<DislocationCandidate> out;
   for (int v = 0; v < vertex_count; ++v) {
     if (representative[v] != v) continue;
@@ -23,18 +24,28 @@ std::vector<DislocationCandidate> dislocationCandidates(
     if (home < 0) continue;
     for (uint32_t i = weights.offsets[v]; i < weights.offsets[v + 1]; ++i) {
       const int other = static_cast<int>(weights.joints[i]);
-      if (other == home || !(weights.weights[i] >= kDislocationMinWeight) ||
-          skeleton.joints[other].parent == home ||
-          skeleton.joints[home].parent == other)
+      if (other == home || !(weights.weights[i] >= kDislocationMinWeight))
         continue;
+      const bool linked = skeleton.joints[other].parent == home ||
+                          skeleton.joints[home].parent == other;
+      const Eigen::Vector3f rest = rig.mesh.positions.row(v).transpose();
+      const float radius = std::max(
+          floor, static_cast<float>(
+                     partition.segments[home].distance(rest.cast<double>())));
+      if (linked) {
+        // A parent and its child turn about their shared joint: only a
+        // vertex farther than the axis reach from it can be dislocated.
+        const int child = skeleton.joints[other].parent == home ? other : home;
+        if ((rest - binds[child].translation()).norm() <=
+            kDislocationAxisReach * radius)
+          continue;
+      }
       DislocationCandidate c;
       c.vertex = v;
       c.home_joint = home;
       c.other_joint = other;
-      c.rest = rig.mesh.positions.row(v).transpose();
-      c.radius = std::max(
-          floor, static_cast<float>(
-                     partition.segments[home].distance(c.rest.cast<double>())));
+      c.rest = rest;
+      c.radius = radius;
       out.push_back(c);
     }
   }

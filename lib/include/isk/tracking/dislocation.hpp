@@ -6,7 +6,10 @@
 // composed field can only stand for a pose where the bones that share a
 // vertex turn about a joint near it. Weights that blend a vertex between
 // joints the skeleton does not link -- two chains under one skin (several
-// root joints), siblings -- can ask for more: when the two joints' relative
+// root joints), siblings -- can ask for more, and so can weights that spread
+// a parent and its child over a stretch longer than the axis reach from
+// their joint (a tube blended smoothly over many short bones): when the two
+// joints' relative
 // motion at the vertex's rest position is a turn about an axis far away, or
 // a slide, the two fields are dislocated against each other and the march
 // pulls the skin apart to follow them (a tube bent in the middle crumples
@@ -23,7 +26,9 @@
 namespace isk {
 
 // A vertex weighted to a joint other than its own part's joint (its home
-// joint), its parent and its children.
+// joint): an unlinked one, or its parent or a child where the vertex lies
+// more than kDislocationAxisReach radii from their shared joint (nearer, a
+// turn about that joint cannot dislocate it).
 struct DislocationCandidate {
   int vertex = -1;       // a representative of the welded mesh
   int home_joint = -1;   // the joint of the vertex's part (skeleton index)
@@ -42,9 +47,11 @@ constexpr float kDislocationAxisReach = 3.f;
 
 // The candidates of `rig` (validated) with `partition` (of the same rig):
 // every representative vertex (`representative`, #V, of the welded mesh)
-// and every joint of weight >= kDislocationMinWeight at it that is not its
-// home joint nor the home joint's parent or child. The radius is floored at
-// 1% of the rig's bounding-box diagonal. Sorted by vertex.
+// and every joint of weight >= kDislocationMinWeight at it other than its
+// home joint; the home joint's parent or child only where the vertex lies
+// more than kDislocationAxisReach radii from the joint they share (the
+// child's bind position). The radius is floored at 1% of the rig's
+// bounding-box diagonal. Sorted by vertex.
 std::vector<DislocationCandidate> dislocationCandidates(
     const Rig& rig, const BonePartition& partition,
     const std::vector<int>& representative);
