@@ -66,22 +66,28 @@ TEST(SkinQuality, UniformScaleStrainsEveryEdgeAndScalesTheVolume) {
   EXPECT_NEAR(q.dqs_distance_max, farthest / quality.diagonal(), 1e-5);
 }
 
+// A vertex of the cylinder's surface half way along its axis (+x).
+int midSurfaceVertex(const Mesh& mesh) {
+  const float mid_x = 0.5f * (mesh.positions.col(0).minCoeff() +
+                              mesh.positions.col(0).maxCoeff());
+  int vertex = -1;
+  float best = 1e30f;
+  for (int i = 0; i < mesh.vertexCount(); ++i) {
+    const Eigen::RowVector3f p = mesh.positions.row(i);
+    const float d =
+        std::abs(p.x() - mid_x) - Eigen::Vector2f(p.y(), p.z()).norm();
+    if (d < best) best = d, vertex = i;
+  }
+  return vertex;
+}
+
 // One vertex pushed through the opposite wall of the cylinder: a spike
 // whose triangles fold over their neighbours and cross the far side.
 TEST(SkinQuality, ASpikeIsCountedAndStrainsItsEdges) {
   const Rig rig = makeCylinderRig();
   const Mesh& mesh = rig.mesh;
   SkinQuality quality(mesh, groupsOf(mesh));
-  int v = -1;  // a vertex half way along the axis (+x), on the surface
-  const float mid_x = 0.5f * (mesh.positions.col(0).minCoeff() +
-                              mesh.positions.col(0).maxCoeff());
-  float best = 1e30f;
-  for (int i = 0; i < mesh.vertexCount(); ++i) {
-    const Eigen::RowVector3f p = mesh.positions.row(i);
-    const float d =
-        std::abs(p.x() - mid_x) - Eigen::Vector2f(p.y(), p.z()).norm();
-    if (d < best) best = d, v = i;
-  }
+  const int v = midSurfaceVertex(mesh);
   Matrix3Xf spiked = mesh.positions;
   const Eigen::RowVector3f radial(0, spiked(v, 1), spiked(v, 2));
   spiked.row(v) -= 2.5f * radial;  // through the axis and out the far side
@@ -161,18 +167,10 @@ TEST(SkinQuality, SummaryPicksTheWorstFrame) {
   EXPECT_EQ(summarizeQuality({}).worst_frame, -1);
 }
 
-// A vertex of the cylinder's surface half way along its axis (+x), pushed
-// out radially by half its radius; `vertex` receives it.
+// midSurfaceVertex pushed out radially by half its radius; `vertex`
+// receives it.
 Matrix3Xf pushedOut(const Mesh& mesh, int* vertex) {
-  const float mid_x = 0.5f * (mesh.positions.col(0).minCoeff() +
-                              mesh.positions.col(0).maxCoeff());
-  float best = 1e30f;
-  for (int i = 0; i < mesh.vertexCount(); ++i) {
-    const Eigen::RowVector3f p = mesh.positions.row(i);
-    const float d =
-        std::abs(p.x() - mid_x) - Eigen::Vector2f(p.y(), p.z()).norm();
-    if (d < best) best = d, *vertex = i;
-  }
+  *vertex = midSurfaceVertex(mesh);
   Matrix3Xf out = mesh.positions;
   out.row(*vertex) +=
       0.5f * Eigen::RowVector3f(0, out(*vertex, 1), out(*vertex, 2));
