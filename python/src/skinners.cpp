@@ -182,8 +182,8 @@ class PyImplicitSkinner {
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
     if (!parseRigidPieces(rigid_pieces, &options.fields.rigid_pieces)) {
-      fail("rigid_pieces", "expected 'auto', 'rigid' or 'tracked', got '" +
-                               rigid_pieces + "'");
+      fail("rigid_pieces",
+           "expected 'auto', 'rigid' or 'tracked', got '" + rigid_pieces + "'");
     }
     if (cache_dir) {
       options.fields.cache = true;
@@ -361,15 +361,14 @@ void registerSkinners(py::module_& m) {
                                 "Implicit skinning of one rig "
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
-      .def(py::init<RigPtr, const std::string&, const std::string&, py::object,
-                    py::object, std::optional<double>, std::optional<double>,
-                    std::optional<int>, std::optional<float>,
-                    std::optional<float>, std::optional<int>,
-                    std::optional<bool>, std::optional<bool>,
-                    std::optional<bool>, std::optional<float>,
-                    std::optional<bool>, const std::string&, bool,
-                    const std::string&, std::optional<std::string>,
-                    py::object>(),
+      .def(py::init<
+               RigPtr, const std::string&, const std::string&, py::object,
+               py::object, std::optional<double>, std::optional<double>,
+               std::optional<int>, std::optional<float>, std::optional<float>,
+               std::optional<int>, std::optional<bool>, std::optional<bool>,
+               std::optional<bool>, std::optional<float>, std::optional<bool>,
+               const std::string&, bool, const std::string&,
+               std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "union",
            py::arg("joint_operators") = py::none(),
@@ -384,8 +383,8 @@ void registerSkinners(py::module_& m) {
            py::arg("volume_restore") = py::none(),
            py::arg("dislocation_guard") = py::none(),
            py::arg("base_skinning") = "dqs", py::arg("layers") = true,
-           py::arg("rigid_pieces") = "auto",
-           py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
+           py::arg("rigid_pieces") = "auto", py::arg("cache_dir") = py::none(),
+           py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))
       .def("positions", &PyImplicitSkinner::positions)
       .def("normals", &PyImplicitSkinner::normals)
