@@ -14,6 +14,10 @@ Device = str  # "opencl", "opencl:N", "gpu", "cpu" or "reference"
 Operator = Literal["union", "blend", "bulge"]
 Method = Literal["dqs", "lbs"]
 RigidPieces = Literal["auto", "rigid", "tracked"]
+# A quality dict: measures (int, float or None) and "parts", one dict per
+# bone's part (joint name, edges, strains, distance).
+QualityDict = dict[
+    str, Optional[Union[int, float, list[dict[str, Union[str, int, float]]]]]]
 
 class Error(RuntimeError):
     """An isk::Error; .code names its kind."""
@@ -156,12 +160,12 @@ class SkinQuality:
         positions: ArrayLike,
         dqs_positions: Optional[ArrayLike] = None,
         lost: int = 0,
-    ) -> dict[str, Optional[Union[int, float]]]: ...
-    def summary(self) -> dict[str, Optional[Union[int, float]]]: ...
+    ) -> QualityDict: ...
+    def summary(self) -> QualityDict: ...
 
 def quality(
     rig: Rig,
     positions: ArrayLike,
     dqs_positions: Optional[ArrayLike] = None,
     contact_radius: float = 0.05,
-) -> dict[str, Optional[Union[int, float]]]: ...
+) -> QualityDict: ...

@@ -7,6 +7,7 @@
 
 #include "arrays.hpp"
 #include "bindings.hpp"
+#include "isk/fields/bone_partition.hpp"
 #include "isk/rig/rig.hpp"
 #include "isk/tools/self_intersection.hpp"
 #include "isk/tools/skin_quality.hpp"
@@ -21,7 +22,23 @@ py::object optional(const std::optional<double>& value) {
   return value ? py::cast(*value) : py::none();
 }
 
-py::dict frameDict(const FrameQuality& frame, const SkinQuality& measure) {
+// Each bone's part (by its joint's name), ascending joint index.
+py::list partsList(const std::vector<PartQuality>& parts, const Rig& rig) {
+  py::list out;
+  for (const PartQuality& p : parts) {
+    py::dict part;
+    part["joint"] = rig.skeleton.joints[p.part].name;
+    part["edges"] = p.edges;
+    part["edge_strain_mean"] = p.edge_strain_mean;
+    part["dqs_edge_strain_mean"] = p.dqs_edge_strain_mean;
+    part["dqs_distance_max"] = p.dqs_distance_max;
+    out.append(part);
+  }
+  return out;
+}
+
+py::dict frameDict(const FrameQuality& frame, const SkinQuality& measure,
+                   const Rig& rig) {
   py::dict out;
   out["self_intersections"] = frame.self_intersections;
   out["new_self_intersections"] = frame.new_self_intersections;
@@ -34,13 +51,16 @@ py::dict frameDict(const FrameQuality& frame, const SkinQuality& measure) {
   out["contact_region_vertices"] = frame.contact_region_vertices;
   out["dqs_distance_mean"] = frame.dqs_distance_mean;
   out["dqs_distance_max"] = frame.dqs_distance_max;
+  out["parts"] = partsList(frame.parts, rig);
   return out;
 }
 
-// Welded at the seams as isk-skin's report is without a tracking mesh.
+// Welded at the seams as isk-skin's report is without a tracking mesh, with
+// its bones' parts.
 std::unique_ptr<SkinQuality> makeMeasure(const Rig& rig, float contact_radius) {
   SkinQualityOptions options;
   options.contact_radius = contact_radius;
+  options.vertex_parts = partitionMesh(rig).vertex_joint;
   return std::make_unique<SkinQuality>(
       rig.mesh, coincidentVertexGroups(rig.mesh.positions), options);
 }
@@ -67,7 +87,7 @@ class ClipQuality {
           measure_->measure(positions, dqs ? &*dqs : nullptr, nullptr, lost);
     }
     frames_.push_back(frame);
-    py::dict out = frameDict(frame, *measure_);
+    py::dict out = frameDict(frame, *measure_, *rig_);
     out["jitter_mean"] = optional(frame.jitter_mean);
     out["jitter_max"] = optional(frame.jitter_max);
     out["lost_vertices"] = frame.lost_vertices;
@@ -90,6 +110,7 @@ class ClipQuality {
     out["jitter_max"] = optional(s.jitter_max);
     out["lost_vertices_max"] = s.lost_vertices_max;
     out["worst_frame"] = s.worst_frame;
+    out["parts"] = partsList(s.parts, *rig_);
     return out;
   }
 
@@ -112,7 +133,7 @@ py::dict quality(const Rig& rig, py::handle positions_in, py::handle dqs_in,
     measure = makeMeasure(rig, contact_radius);
     frame = measure->measure(positions, dqs ? &*dqs : nullptr);
   }
-  return frameDict(frame, *measure);
+  return frameDict(frame, *measure, rig);
 }
 
 }  // namespace

@@ -13,7 +13,7 @@ KEYS = {"self_intersections", "new_self_intersections",
         "rest_self_intersections", "volume_ratio", "covered_volume_ratio",
         "rest_volume",
         "edge_strain_mean", "edge_strain_max", "contact_region_vertices",
-        "dqs_distance_mean", "dqs_distance_max"}
+        "dqs_distance_mean", "dqs_distance_max", "parts"}
 
 
 @pytest.mark.parametrize("name", BUILTIN_RIGS + ASSETS)
@@ -73,6 +73,16 @@ def test_a_vertex_through_the_skin_is_a_new_pair():
     positions[side, 1] = -1.5
     q = isk.quality(rig, positions)
     assert q["new_self_intersections"] > 0
+    # Per part, against the rest pose as the DQS frame: the pushed vertex's
+    # part alone moved (its edges strain the part beside it too).
+    q = isk.quality(rig, positions, dqs_positions=rig.rest_positions)
+    parts = q["parts"]
+    assert len(parts) == 2
+    assert {p["joint"] for p in parts} <= set(rig.joint_names)
+    assert all(p["dqs_edge_strain_mean"] == 0 for p in parts)
+    assert all(p["edge_strain_mean"] > 0 for p in parts)
+    moved = [p["dqs_distance_max"] for p in parts]
+    assert sorted(moved)[0] == 0 and sorted(moved)[1] > 0
 
 
 def isk_skin_exe():
@@ -139,3 +149,16 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
     assert summary["frames"] == frames
     assert summary["new_self_intersections_total"] == sum(
         f["new_self_intersections"] for f in expected)
+    # Per part: the report's quality.parts (by excess strain) by joint.
+    parts = json.loads(report.read_text())["quality"]["parts"]
+    assert {p["joint"] for p in summary["parts"]} == {p["joint"] for p in parts}
+    by_joint = {p["joint"]: p for p in parts}
+    for part in summary["parts"]:
+        reported = by_joint[part["joint"]]
+        assert part["edges"] == reported["edges"]
+        for key in ("edge_strain_mean", "dqs_edge_strain_mean",
+                    "dqs_distance_max"):
+            assert part[key] == pytest.approx(reported[key], rel=1e-9,
+                                              abs=1e-12), (part["joint"], key)
+        if method == "dqs":
+            assert part["edge_strain_mean"] == part["dqs_edge_strain_mean"]
