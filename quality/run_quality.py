@@ -10,8 +10,9 @@ from one run.
 
 Every case (a shared asset with its first clip, and the procedural bends of
 60, 90 and 120 degrees on the built-in rigs and on the assets) is skinned by
-`isk-skin` with LBS, DQS and implicit skinning with each composition operator
-(union, which is implicit skinning's default, blend and bulge); the numbers
+`isk-skin` with LBS, DQS and implicit skinning with its default composition
+(auto: the union, with the blend at the limbs' joints) and with the union,
+blend and bulge at every joint; the numbers
 come from the JSON reports isk-skin writes (`quality` section), the targets
 are evaluated here, and `isk-frame-pictures` draws the worst frame of the
 implicit run beside LBS and DQS. A failed run is recorded with the last line
@@ -51,13 +52,14 @@ MANIFEST = ".written-by-run_quality.json"
 METHODS = (
     ("lbs", "lbs", None, "LBS"),
     ("dqs", "dqs", None, "DQS"),
-    ("union", "implicit", "union", "implicit union (default)"),
+    ("auto", "implicit", None, "implicit auto (default)"),
+    ("union", "implicit", "union", "implicit union"),
     ("blend", "implicit", "blend", "implicit blend"),
     ("bulge", "implicit", "bulge", "implicit bulge"),
 )
 METHOD_LABEL = {key: label for key, _, _, label in METHODS}
-IMPLICIT_KEYS = ("union", "blend", "bulge")
-DEFAULT_IMPLICIT = "union"  # `--method implicit` without --operator
+IMPLICIT_KEYS = ("auto", "union", "blend", "bulge")
+DEFAULT_IMPLICIT = "auto"  # `--method implicit` without --operator
 
 # The targets' thresholds.
 PAIRS_SUM_FLOOR = 100       # DQS's sum over the clip from which ...
@@ -699,12 +701,13 @@ def header_section(meta, cases):
                  "over the clip from its first key to its last.")
     run_cases = [c for c in cases if not c.get("skipped")]
     lines.append(f"- {len(run_cases)} cases, each skinned with LBS, DQS and "
-                 "implicit skinning with the union (`--method implicit "
-                 "--operator union`), blend and bulge composition operators. "
-                 "`--method implicit` without `--operator` uses the union: "
-                 "the union run is implicit skinning's default, and it is "
-                 "the one the targets are judged on (blend and bulge are "
-                 "reported beside it).")
+                 "implicit skinning with its default composition (`--method "
+                 "implicit`, that is `--operator auto`: the union, with the "
+                 "gradient-based blend at the joints of mirrored limbs) and "
+                 "with the union, blend and bulge at every joint "
+                 "(`--operator union|blend|bulge`). The default run is the "
+                 "one the targets are judged on (the others are reported "
+                 "beside it).")
     lines.append("- Cases: every asset of the data folder "
                  f"(`{meta.get('data', '?')}`) with its first clip "
                  "(isk-skin's default clip: clip 0, or a 90-degree bend of every joint "
@@ -757,7 +760,7 @@ def measures_section(cases):
               "vertices stopped at a contact; 'worst frame' the frame with "
               "the most new pairs (on a tie, the one whose volume is "
               "furthest from the rest volume).", "",
-              "The targets, judged on each case's implicit default (union) "
+              "The targets, judged on each case's implicit default (auto) "
               "run against the DQS run of the same case:", ""]
     for key, label in TARGETS:
         lines.append(f"- **{label}**: {TARGET_DEFINITIONS[key]}")
@@ -812,7 +815,7 @@ def case_section(case, images_rel, pictures_note):
         rows.append([label] + [verdict(*evaluation[k][t])
                                for k in IMPLICIT_KEYS])
     lines += table(["target"] + [METHOD_LABEL[k] for k in IMPLICIT_KEYS],
-                   rows, ["l", "l", "l", "l"])
+                   rows, ["l"] * (len(IMPLICIT_KEYS) + 1))
     parts = parts_line(runs.get(DEFAULT_IMPLICIT))
     if parts:
         lines += [parts, ""]
@@ -839,8 +842,8 @@ def targets_summary_section(cases):
     if not run_cases:
         return lines + ["No case was run.", ""]
     lines.append(f"How many of the {len(run_cases)} cases meet each target "
-                 "(the default is the one judged; blend and bulge for "
-                 "comparison):")
+                 "(the default is the one judged; the union, blend and "
+                 "bulge at every joint for comparison):")
     lines.append("")
     rows = []
     summaries = {k: target_summary(run_cases, k) for k in IMPLICIT_KEYS}
@@ -854,7 +857,7 @@ def targets_summary_section(cases):
             row.append(text)
         rows.append(row)
     lines += table(["target"] + [METHOD_LABEL[k] for k in IMPLICIT_KEYS],
-                   rows, ["l", "l", "l", "l"])
+                   rows, ["l"] * (len(IMPLICIT_KEYS) + 1))
     all_met = sum(
         1 for c in run_cases
         if all(s != NOT_MET for s, _ in

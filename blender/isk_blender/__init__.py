@@ -347,9 +347,11 @@ class IskSettings(bpy.types.PropertyGroup):
                ('cpu', "CPU", "The first OpenCL CPU device"),
                ('reference', "Reference", "The single-thread CPU reference")])
     operator: EnumProperty(
-        name="Operator", default='union',
-        description="Every joint's composition operator",
-        items=[('union', "Union", "Max of the two fields"),
+        name="Operator", default='auto',
+        description="The joints' composition operator",
+        items=[('auto', "Auto", "Union, with the gradient-based blend at "
+                "the joints of mirrored limbs (shoulders, elbows, knees...)"),
+               ('union', "Union", "Max of the two fields"),
                ('blend', "Blend", "Gradient-based blend"),
                ('bulge', "Bulge", "Bulge in contact")])
     joint_operators: StringProperty(

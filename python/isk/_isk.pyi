@@ -12,6 +12,9 @@ ArrayLike = npt.ArrayLike
 
 Device = str  # "opencl", "opencl:N", "gpu", "cpu" or "reference"
 Operator = Literal["union", "blend", "bulge"]
+# "auto": the union, with the gradient-based blend at the joints of mirrored
+# limbs (shoulders, elbows, knees...); or one operator at every joint.
+OperatorChoice = Literal["auto", "union", "blend", "bulge"]
 Method = Literal["dqs", "lbs"]
 RigidPieces = Literal["auto", "rigid", "tracked"]
 # A quality dict: measures (int, float or None) and "parts", one dict per
@@ -91,7 +94,7 @@ class ImplicitSkinner:
         rig: Rig,
         *,
         device: Device = "opencl",
-        operator: Operator = "union",
+        operator: OperatorChoice = "auto",
         joint_operators: Optional[Mapping[str, Operator]] = None,
         untracked_joints: Optional[Sequence[str]] = None,
         bulge_strength: Optional[float] = None,

@@ -132,7 +132,10 @@ class PyImplicitSkinner {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
     CompositionOptions& composition = options.fields.composition;
-    composition.default_operator = parseOperator(op, "operator");
+    if (!parseOperatorChoice(op, &composition)) {
+      fail("operator",
+           "expected 'auto', 'union', 'blend' or 'bulge', got '" + op + "'");
+    }
     if (!joint_operators.is_none()) {
       if (!py::isinstance<py::dict>(joint_operators)) {
         fail("joint_operators", "expected a dict of joint name to operator");
@@ -370,7 +373,7 @@ void registerSkinners(py::module_& m) {
                const std::string&, bool, const std::string&,
                std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
-           py::arg("operator") = "union",
+           py::arg("operator") = "auto",
            py::arg("joint_operators") = py::none(),
            py::arg("untracked_joints") = py::none(),
            py::arg("bulge_strength") = py::none(),

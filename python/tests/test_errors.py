@@ -136,7 +136,8 @@ def test_bad_options_are_named():
     rig = isk.builtin_rig("arm")
     with pytest.raises(isk.InvalidArgumentError, match="device"):
         isk.ImplicitSkinner(rig, device="tpu")
-    with pytest.raises(isk.InvalidArgumentError, match="operator"):
+    with pytest.raises(isk.InvalidArgumentError,
+                       match="operator: expected 'auto', 'union'"):
         isk.ImplicitSkinner(rig, operator="glue")
     with pytest.raises(isk.InvalidArgumentError,
                        match="no joint named 'knee'"):

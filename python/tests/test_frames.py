@@ -72,6 +72,23 @@ def test_bend_pose_with_operators_equals_cpp(tmp_path, operator, device):
     assert_same_frames(skinner, reference, poses, True)
 
 
+@pytest.mark.parametrize("name", BUILTIN_RIGS + ["CesiumMan.glb"])
+def test_auto_operator_blends_at_the_limbs(name):
+    # The default, "auto", is the union with the blend at the joints of
+    # mirrored limbs: the procedural rigs (one limb) get the union's frames,
+    # CesiumMan (two arms, two legs) others.
+    rig = load(rig_spec(name))
+    pose = rig.bend_pose(60)
+    frames = {op: isk.ImplicitSkinner(rig, device="reference",
+                                      **({"operator": op} if op else {}))
+              .deform(pose)[0] for op in (None, "auto", "union")}
+    assert np.array_equal(frames[None], frames["auto"])
+    if name in BUILTIN_RIGS:
+        assert np.array_equal(frames["auto"], frames["union"])
+    else:
+        assert not np.array_equal(frames["auto"], frames["union"])
+
+
 def test_operator_controllers_shape_the_frames():
     # The bulge's strength and the blend's theta reach the operators: other
     # frames at a bend, and the fields' validation for values out of range.

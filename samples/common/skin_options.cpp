@@ -98,10 +98,12 @@ CompositionFlags addCompositionOptions(CLI::App& app, Options& options) {
   CompositionFlags flags;
   flags.op =
       app.add_option("--operator", options.default_operator,
-                     "composition operator at every joint: union, blend or "
-                     "bulge; builds the implicit fields and reports the iso "
-                     "drift")
-          ->check(CLI::IsMember({"union", "blend", "bulge"}))
+                     "composition operator: auto (the union, with the "
+                     "gradient-based blend at the joints of mirrored limbs: "
+                     "shoulders, elbows, knees...), or union, blend or bulge "
+                     "at every joint; builds the implicit fields and reports "
+                     "the iso drift")
+          ->check(CLI::IsMember({"auto", "union", "blend", "bulge"}))
           ->capture_default_str();
   // One NAME=OP per occurrence, so that a following INPUT is not taken.
   flags.joint_operator =
@@ -259,7 +261,10 @@ std::string paramsFile(const Options& options, std::ostream& log) {
 void applyCommandLine(const Options& options, const Skeleton& skeleton,
                       RigParams& params) {
   const CompositionOptions cli = parseCompositionOptions(options);
-  if (options.operator_given) params.default_operator = cli.default_operator;
+  if (options.operator_given) {
+    params.default_operator = cli.default_operator;
+    params.limb_operator = cli.limb_operator;
+  }
   if (options.bulge_strength_given) params.bulge_strength = cli.bulge_strength;
   if (options.blend_theta_given) params.blend_theta = cli.blend_theta;
   for (const auto& [name, op] : cli.joint_operators) {
@@ -334,11 +339,10 @@ std::string checkDevice(const std::string& value) {
 
 CompositionOptions parseCompositionOptions(const Options& options) {
   CompositionOptions composition;
-  if (!parseCompositionOperator(options.default_operator,
-                                &composition.default_operator)) {
+  if (!parseOperatorChoice(options.default_operator, &composition)) {
     throw Error(ErrorCode::kInvalidArgument,
                 "--operator '" + options.default_operator +
-                    "': expected union, blend or bulge");
+                    "': expected auto, union, blend or bulge");
   }
   // CLI11's range checks let NaN through.
   if (!(options.bulge_strength >= 0 && options.bulge_strength <= 1)) {
@@ -400,6 +404,7 @@ std::vector<std::string> unusedControllerWarnings(
     const Options& options, const CompositionOptions& composition) {
   auto used = [&](CompositionOperator op) {
     if (composition.default_operator == op) return true;
+    if (composition.limb_operator == op) return true;
     for (const auto& entry : composition.joint_operators) {
       if (entry.second == op) return true;
     }

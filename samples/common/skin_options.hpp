@@ -41,7 +41,7 @@ struct Options {
 
   // Composition operators (the implicit fields are built only when one of
   // these options is given: `composition_given`).
-  std::string default_operator = "union";
+  std::string default_operator = "auto";
   std::vector<std::string> joint_operators;  // NAME=OP, as given
   double bulge_strength = 1;
   double blend_theta = 0;

@@ -815,7 +815,8 @@ void checkIsoValues(const std::string& name) {
   const Rig& rig = rigNamed(name);
   const ImplicitFields& fields = implicitFieldsOf(name);
   ASSERT_EQ(static_cast<int>(fields.iso_values.size()), rig.mesh.vertexCount());
-  // The union at the rest pose, evaluated independently.
+  // The composition at the rest pose (the union, and the limbs' blend pairs
+  // at their bind rotation), evaluated independently.
   Matrix4Xf composed;
   const TransformList rest(rig.skeleton.jointCount(),
                            Eigen::Affine3f::Identity());
@@ -823,6 +824,7 @@ void checkIsoValues(const std::string& name) {
   job.fields = &fields.grids;
   job.skinning = &rest;
   job.points = &rig.mesh.positions;
+  job.composition = &fields.composition;
   job.out_composed = &composed;
   job.run();
   // The untracked vertices (rigid pieces left on skinning: RobotExpressive's

@@ -72,6 +72,31 @@ TEST(RigParamsTest, RoundTripsThroughAFile) {
   EXPECT_TRUE(parseRigParams("{}", "x.json") == RigParams());
 }
 
+TEST(RigParamsTest, AutoOperatorBlendsAtTheLimbs) {
+  // "auto" (the default) is the union with the blend at the limb joints;
+  // "union" is the union at every joint; both written back as read.
+  const RigParams plain = RigParams();
+  EXPECT_EQ(plain.limb_operator, CompositionOperator::kBlend);
+  EXPECT_NE(formatRigParams(plain).find(R"("operator": "auto")"),
+            std::string::npos)
+      << formatRigParams(plain);
+  const RigParams automatic =
+      parseRigParams(R"({"defaults": {"operator": "auto"}})", "p.json");
+  EXPECT_TRUE(automatic == plain);
+  const RigParams unions =
+      parseRigParams(R"({"defaults": {"operator": "union"}})", "p.json");
+  EXPECT_EQ(unions.default_operator, CompositionOperator::kUnion);
+  EXPECT_FALSE(unions.limb_operator.has_value());
+  EXPECT_FALSE(unions == plain);
+  EXPECT_NE(formatRigParams(unions).find(R"("operator": "union")"),
+            std::string::npos);
+  ImplicitFieldsOptions options;
+  applyRigParams(unions, &options);
+  EXPECT_FALSE(options.composition.limb_operator.has_value());
+  applyRigParams(automatic, &options);
+  EXPECT_EQ(options.composition.limb_operator, CompositionOperator::kBlend);
+}
+
 // Saved like every file the library writes: whole or not at all, into a
 // folder that exists, over nothing but a regular file.
 TEST(RigParamsTest, SaveFailuresAreIoErrorsNamingThePath) {

@@ -159,6 +159,25 @@ TEST(IskSkinOptions, JointOperatorsSplitAtTheLastEquals) {
             CompositionOperator::kUnion);
 }
 
+TEST(IskSkinOptions, OperatorAutoIsTheDefault) {
+  // --operator auto (the default): the union, the blend at the limbs;
+  // --operator union: the union at every joint.
+  Options options;
+  EXPECT_EQ(options.default_operator, "auto");
+  CompositionOptions composition =
+      samples::skin::parseCompositionOptions(options);
+  EXPECT_EQ(composition.default_operator, CompositionOperator::kUnion);
+  EXPECT_EQ(composition.limb_operator, CompositionOperator::kBlend);
+  options.default_operator = "union";
+  composition = samples::skin::parseCompositionOptions(options);
+  EXPECT_EQ(composition.default_operator, CompositionOperator::kUnion);
+  EXPECT_FALSE(composition.limb_operator.has_value());
+  options.default_operator = "smooth";
+  expectError([&] { samples::skin::parseCompositionOptions(options); },
+              ErrorCode::kInvalidArgument,
+              "--operator 'smooth': expected auto, union, blend or bulge");
+}
+
 TEST(IskSkinOptions, BadOperatorChoicesNameTheArgument) {
   auto parseWith = [](const std::vector<std::string>& joint_operators) {
     Options options;
@@ -207,7 +226,12 @@ TEST(IskSkinOptions, UnusedControllersAreWarnedAbout) {
   Options options;
   options.bulge_strength_given = true;
   options.blend_theta_given = true;
-  CompositionOptions composition;  // union everywhere
+  CompositionOptions composition;  // auto: the limbs blend
+  EXPECT_EQ(samples::skin::unusedControllerWarnings(options, composition),
+            std::vector<std::string>{
+                "isk-skin: warning: --bulge-strength has no effect: no joint "
+                "uses bulge"});
+  composition.limb_operator.reset();  // union everywhere
   const std::vector<std::string> both =
       samples::skin::unusedControllerWarnings(options, composition);
   ASSERT_EQ(both.size(), 2u);

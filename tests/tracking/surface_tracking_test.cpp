@@ -1267,7 +1267,7 @@ TEST(SurfaceTracking, CreaseGateStrainsTheSkinLessOnAssets) {
   for (const std::string name : {"horse-animations.glb", "CesiumMan.glb"}) {
     const Rig& rig = test::rigNamed(name);
     checkCreaseGateStrain(name, rig, sharedFields(name), clipPoses(rig, 4),
-                          0.15);
+                          0.12);
   }
 }
 

@@ -5,6 +5,7 @@
 #include <set>
 
 #include "isk/core/error.hpp"
+#include "isk/fields/limb_joints.hpp"
 
 namespace isk {
 namespace {
@@ -61,6 +62,31 @@ size_t Composition::tableBytes() const {
   return bytes;
 }
 
+bool parseOperatorChoice(const std::string& name, CompositionOptions* options) {
+  if (name == "auto") {
+    options->default_operator = CompositionOperator::kUnion;
+    options->limb_operator = CompositionOperator::kBlend;
+    return true;
+  }
+  CompositionOperator op;
+  if (!parseCompositionOperator(name, &op)) return false;
+  options->default_operator = op;
+  options->limb_operator.reset();
+  return true;
+}
+
+std::string operatorChoiceName(const CompositionOptions& options) {
+  const CompositionOperator limb =
+      options.limb_operator.value_or(options.default_operator);
+  if (limb == options.default_operator)
+    return compositionOperatorName(options.default_operator);
+  if (options.default_operator == CompositionOperator::kUnion &&
+      limb == CompositionOperator::kBlend)
+    return "auto";
+  return std::string(compositionOperatorName(options.default_operator)) + ", " +
+         compositionOperatorName(limb) + " at the limbs";
+}
+
 Validation validateCompositionOptions(const Skeleton& skeleton,
                                       const CompositionOptions& options) {
   if (options.table_resolution < 2 || options.table_resolution > 512)
@@ -105,6 +131,9 @@ Composition buildComposition(const Skeleton& skeleton,
 
   Composition out;
   out.table_resolution = options.table_resolution;
+  std::vector<char> is_limb(skeleton.jointCount(), 0);
+  if (options.limb_operator)
+    for (int j : limbJoints(skeleton, fields.field_of_joint)) is_limb[j] = 1;
   std::set<std::string> paired;
   for (int j = 0; j < skeleton.jointCount(); ++j) {
     const int field = fields.field_of_joint[j];
@@ -119,9 +148,9 @@ Composition buildComposition(const Skeleton& skeleton,
     pair.field_a = fields.field_of_joint[ancestor];
     pair.field_b = field;
     const auto chosen = options.joint_operators.find(name);
-    pair.op = chosen != options.joint_operators.end()
-                  ? chosen->second
-                  : options.default_operator;
+    pair.op = chosen != options.joint_operators.end() ? chosen->second
+              : is_limb[j]                            ? *options.limb_operator
+                           : options.default_operator;
     paired.insert(name);
     if (pair.op != CompositionOperator::kUnion) {
       const auto custom = options.joint_controllers.find(name);

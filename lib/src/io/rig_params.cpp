@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "isk/core/error.hpp"
+#include "isk/fields/field_composition.hpp"
 #include "isk/io/export.hpp"
 
 namespace isk {
@@ -83,9 +84,12 @@ bool JointParams::operator==(const JointParams& o) const {
 }
 
 bool RigParams::operator==(const RigParams& o) const {
-  return default_operator == o.default_operator && samples == o.samples &&
-         bulge_strength == o.bulge_strength && blend_theta == o.blend_theta &&
-         joints == o.joints;
+  // The limbs' operator as it acts: unset is the default operator.
+  return default_operator == o.default_operator &&
+         limb_operator.value_or(default_operator) ==
+             o.limb_operator.value_or(o.default_operator) &&
+         samples == o.samples && bulge_strength == o.bulge_strength &&
+         blend_theta == o.blend_theta && joints == o.joints;
 }
 
 RigParams parseRigParams(const std::string& text, const std::string& file,
@@ -111,9 +115,17 @@ RigParams parseRigParams(const std::string& text, const std::string& file,
       if (!value.is_object()) fail(file, keyName(key), "expected an object");
       for (const auto& [name, v] : value.items()) {
         const std::string where = "defaults: " + keyName(name);
-        if (name == "operator")
-          params.default_operator = readOperator(v, file, where);
-        else if (name == "samples")
+        if (name == "operator") {
+          CompositionOptions choice;
+          if (!v.is_string() ||
+              !parseOperatorChoice(v.get<std::string>(), &choice))
+            fail(file, where,
+                 "expected \"auto\", \"union\", \"blend\" or \"bulge\", "
+                 "got " +
+                     v.dump());
+          params.default_operator = choice.default_operator;
+          params.limb_operator = choice.limb_operator;
+        } else if (name == "samples")
           params.samples = readSamples(v, file, where);
         else if (name == "bulge_strength")
           params.bulge_strength = readStrength(v, file, where);
@@ -200,11 +212,13 @@ std::string formatRigParams(const RigParams& params) {
   nlohmann::ordered_json root = nlohmann::ordered_json::object();
   root["format"] = "isk-params";
   root["version"] = kVersion;
-  root["defaults"] = {
-      {"operator", compositionOperatorName(params.default_operator)},
-      {"samples", params.samples},
-      {"bulge_strength", params.bulge_strength},
-      {"blend_theta", params.blend_theta}};
+  CompositionOptions choice;
+  choice.default_operator = params.default_operator;
+  choice.limb_operator = params.limb_operator;
+  root["defaults"] = {{"operator", operatorChoiceName(choice)},
+                      {"samples", params.samples},
+                      {"bulge_strength", params.bulge_strength},
+                      {"blend_theta", params.blend_theta}};
   nlohmann::ordered_json joints = nlohmann::ordered_json::object();
   for (const auto& [name, jp] : params.joints) {
     nlohmann::ordered_json entry = nlohmann::ordered_json::object();
@@ -227,6 +241,7 @@ void saveRigParams(const std::string& path, const RigParams& params) {
 void applyRigParams(const RigParams& params, ImplicitFieldsOptions* options) {
   CompositionOptions& c = options->composition;
   c.default_operator = params.default_operator;
+  c.limb_operator = params.limb_operator;
   c.bulge_strength = params.bulge_strength;
   c.blend_theta = params.blend_theta;
   options->sampling.target_samples = params.samples;

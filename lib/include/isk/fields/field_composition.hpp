@@ -30,6 +30,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,8 +42,14 @@ namespace isk {
 
 // Which operator each joint uses and how its theta is controlled.
 struct CompositionOptions {
-  // The operator of every joint not named in `joint_operators`.
+  // The operator of every joint not named in `joint_operators`...
   CompositionOperator default_operator = CompositionOperator::kUnion;
+  // ... but for the limb joints (isk/fields/limb_joints.hpp: shoulders,
+  // elbows, wrists, knees, ankles of mirrored limbs), which take this one
+  // when set. The default, union with the blend at the limbs, is the
+  // paper's advice and the "auto" choice of parseOperatorChoice.
+  std::optional<CompositionOperator> limb_operator =
+      CompositionOperator::kBlend;
   // Per-joint choices by joint name (the joint at which two bones meet: the
   // elbow's joint pairs the upper arm with the forearm).
   std::map<std::string, CompositionOperator> joint_operators;
@@ -55,6 +62,14 @@ struct CompositionOptions {
   std::map<std::string, ThetaController> joint_controllers;
   int table_resolution = 128;  // operator tables, nodes per axis
 };
+
+// The operator choice by name: "auto" (union, blend at the limb joints),
+// "union", "blend" or "bulge" (that operator at every joint) into
+// `options`' default_operator and limb_operator; false for anything else.
+bool parseOperatorChoice(const std::string& name, CompositionOptions* options);
+// The name of `options`' choice above ("auto", "union", ...); a pair it
+// cannot name is written "DEFAULT, LIMB at the limbs".
+std::string operatorChoiceName(const CompositionOptions& options);
 
 // Two neighbouring fields and their operator.
 struct FieldPair {

@@ -8,7 +8,7 @@
 //     "format": "isk-params",
 //     "version": 1,
 //     "defaults": {                // every joint not overridden below
-//       "operator": "union",       // union | blend | bulge
+//       "operator": "auto",        // auto | union | blend | bulge
 //       "samples": 50,             // Poisson-disk samples per part, 1..100000
 //       "bulge_strength": 1.0,     // [0, 1], joints whose operator is bulge
 //       "blend_theta": 0.0         // [0, pi/4] rad, joints whose operator is
@@ -24,7 +24,9 @@
 //     }
 //   }
 //
-// "operator" is the composition operator at the joint (the joint where the
+// "operator" in "defaults" may be "auto": the union, with the blend at the
+// limb joints (CompositionOptions::limb_operator). Per joint, "operator" is
+// the composition operator at the joint (the joint where the
 // joint's bone meets its parent's, section 4.2); "samples" the Poisson-disk
 // target of the joint's own part; "bulge_strength" and "blend_theta" shape
 // the joint's default controller (Figure 7) and need that joint's operator
@@ -61,6 +63,9 @@ struct JointParams {
 
 struct RigParams {
   CompositionOperator default_operator = CompositionOperator::kUnion;
+  // The limb joints' operator (CompositionOptions::limb_operator).
+  std::optional<CompositionOperator> limb_operator =
+      CompositionOperator::kBlend;
   int samples = 50;
   double bulge_strength = 1;
   double blend_theta = 0;
