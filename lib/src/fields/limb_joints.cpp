@@ -1,7 +1,7 @@
 #include "isk/fields/limb_joints.hpp"
 
 #include <algorithm>
-#include <functional>
+#include <cmath>
 #include <map>
 #include <string>
 

@@ -11,8 +11,8 @@
 // or horns, but not five fingers nor a tail beside a spine. The limb joints
 // are the joints along each such limb from its root down to its first
 // branch (the root excluded: it meets the body, which it does not mirror):
-// a human's shoulder, elbow and wrist, hip-side knee, ankle and ball, a
-// quadruped's every leg joint; not the fingers past the hand.
+// a human's shoulder, elbow and wrist, knee, ankle and ball; a quadruped's
+// every leg joint; not the fingers past the hand.
 #pragma once
 
 #include <vector>
