@@ -400,13 +400,11 @@ std::string trackingOptionsWarning(const Options& options) {
          "--method implicit";
 }
 
-std::vector<std::string> unusedControllerWarnings(
-    const Options& options, const CompositionOptions& composition) {
+std::vector<std::string> unusedControllerWarnings(const Options& options,
+                                                  const Composition& built) {
   auto used = [&](CompositionOperator op) {
-    if (composition.default_operator == op) return true;
-    if (composition.limb_operator == op) return true;
-    for (const auto& entry : composition.joint_operators) {
-      if (entry.second == op) return true;
+    for (const int k : built.blended_pairs) {
+      if (built.pairs[k].op == op) return true;
     }
     return false;
   };

@@ -95,8 +95,10 @@ std::string trackingOptionsWarning(const Options& options);
 
 // A controller option without a joint of its operator changes nothing: one
 // warning per such option, to be said rather than passed over in silence.
-std::vector<std::string> unusedControllerWarnings(
-    const Options& options, const CompositionOptions& composition);
+// `built` is the composition of the rig's fields (buildComposition), so that
+// the auto choice counts only the limb joints the rig has.
+std::vector<std::string> unusedControllerWarnings(const Options& options,
+                                                  const Composition& built);
 
 // The joint names of --joint-operator against the rig's skeleton (only when
 // operators were given). Throws isk::Error(kInvalidArgument) naming the input.

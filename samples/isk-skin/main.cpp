@@ -273,12 +273,14 @@ isk::samples::RunOptions frameLoopOptions(const Options& options,
   return run_options;
 }
 
-// Builds the rig's fields, gives them to the skinner for --method implicit
-// and measures the iso drift after each frame (outside the frame timings).
+// Builds the rig's fields (and warns about the controller options no joint of
+// the built composition uses, unless a parameter file set them), gives them
+// to the skinner for --method implicit and measures the iso drift after each
+// frame (outside the frame timings).
 std::unique_ptr<IsoDriftProbe> addImplicitFields(
     const Options& options, const isk::Rig& rig, const isk::AnimationClip& clip,
-    const isk::ImplicitFieldsOptions& field_options, FrameSkinner& skinner,
-    isk::samples::RunOptions& run_options) {
+    const isk::ImplicitFieldsOptions& field_options, bool from_params,
+    FrameSkinner& skinner, isk::samples::RunOptions& run_options) {
   const auto build_start = std::chrono::steady_clock::now();
   auto fields = std::make_shared<const isk::ImplicitFields>(
       isk::samples::buildFieldsWithProgress(rig, field_options,
@@ -286,6 +288,13 @@ std::unique_ptr<IsoDriftProbe> addImplicitFields(
                                             "isk-skin: warning: "));
   const double build_ms = isk::millisecondsSince(build_start);
   reportFieldCache(*fields);
+  // A parameter file checks its own controllers against its operators.
+  if (!from_params) {
+    for (const std::string& warning :
+         skin::unusedControllerWarnings(options, fields->composition)) {
+      std::cerr << warning << "\n";
+    }
+  }
   if (run_options.implicit) {
     skinner.enableImplicit(rig, fields,
                            skin::implicitOptions(options, field_options));
@@ -376,21 +385,12 @@ int listBuiltinRigs() {
 }
 
 // The per-joint parameters of the run (skin::loadParams), once the joint
-// names of the command line are checked against the rig; without
-// parameters, the controllers no joint uses are warned about.
+// names of the command line are checked against the rig.
 std::optional<isk::ImplicitFieldsOptions> parametersOf(
     const Options& options, const isk::Rig& rig,
     const isk::CompositionOptions& composition) {
   skin::checkJointOperators(options, rig.skeleton, composition);
-  std::optional<isk::ImplicitFieldsOptions> params =
-      skin::loadParams(options, rig, std::cerr);
-  if (!params) {
-    for (const std::string& warning :
-         skin::unusedControllerWarnings(options, composition)) {
-      std::cerr << warning << "\n";
-    }
-  }
-  return params;
+  return skin::loadParams(options, rig, std::cerr);
 }
 
 // The skinner of --device; `setup_ms` is the time its build and upload took.
@@ -435,7 +435,7 @@ int run(const Options& options) {
   if (skin::needsFields(options, params)) {
     probe = addImplicitFields(options, rig, clip,
                               skin::fieldOptions(options, composition, params),
-                              *skinner, run_options);
+                              params.has_value(), *skinner, run_options);
   }
   injectFailureForTests(run_options);
   KeptFrames kept;

@@ -189,6 +189,41 @@ TEST(LimbJoints, TheDefaultCompositionBlendsAtTheLimbs) {
   EXPECT_EQ(operatorChoiceName(choice), "union, bulge at the limbs");
 }
 
+TEST(LimbJoints, AControllerShapesALimbJointAndIsWarnedAboutElsewhere) {
+  // A parameter file's blend_theta on joints left to the auto choice: the
+  // elbow is a limb joint and takes it; the neck composes with the union,
+  // which no controller shapes: a warning says so.
+  const Figure f = humanFigure();
+  CompositionOptions options;
+  options.joint_controllers["lowerarm_l"] = blendController(0.3f);
+  options.joint_controllers["neck"] = blendController(0.3f);
+  const Composition c = figureComposition(f, options);
+  const Composition plain = figureComposition(f, CompositionOptions{});
+  auto controllerAt = [&](const Composition& comp, const char* name) {
+    for (const int k : comp.blended_pairs)
+      if (comp.pairs[k].joint == f.skeleton.find(name))
+        return comp.controllers[comp.pairs[k].controller].theta;
+    return std::vector<float>{};
+  };
+  ASSERT_FALSE(controllerAt(c, "lowerarm_l").empty());
+  EXPECT_NE(controllerAt(c, "lowerarm_l"), controllerAt(plain, "lowerarm_l"));
+  EXPECT_EQ(controllerAt(c, "lowerarm_r"), controllerAt(plain, "lowerarm_r"));
+  EXPECT_EQ(c.operatorAt(f.skeleton.find("neck")), CompositionOperator::kUnion);
+  ASSERT_EQ(c.warnings.size(), 1u);
+  EXPECT_EQ(c.warnings[0],
+            "joint 'neck': its controller has no effect: the joint composes "
+            "with the union (it is not a limb joint)");
+  EXPECT_TRUE(plain.warnings.empty());
+  // The union everywhere: the elbow's controller is unused too.
+  CompositionOptions all_union = options;
+  ASSERT_TRUE(parseOperatorChoice("union", &all_union));
+  const Composition u = figureComposition(f, all_union);
+  ASSERT_EQ(u.warnings.size(), 2u);
+  EXPECT_EQ(u.warnings[0],
+            "joint 'lowerarm_l': its controller has no effect: the joint "
+            "composes with the union");
+}
+
 TEST(LimbJoints, OnTheAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("the assets' limb joints");

@@ -207,10 +207,28 @@ TEST(RigParamsTest, ErrorsNameTheFileTheJointAndTheKey) {
 
   // A key that does not fit the joint's operator.
   m = errorOf([&] {
-    parseRigParams(R"({"joints": {")" + joint + R"(": {"blend_theta": 0.1}}})",
+    parseRigParams(R"({"defaults": {"operator": "union"}, "joints": {")" +
+                       joint + R"(": {"blend_theta": 0.1}}})",
                    "p.json", s);
   });
-  EXPECT_NE(m.find("needs operator blend"), std::string::npos) << m;
+  EXPECT_NE(m.find("needs operator blend (the joint's operator is union)"),
+            std::string::npos)
+      << m;
+  // Under "auto" (the default) a joint without an operator of its own may be
+  // a limb joint, which blends: a blend_theta is taken, a bulge_strength
+  // not.
+  EXPECT_NO_THROW(parseRigParams(
+      R"({"joints": {")" + joint + R"(": {"blend_theta": 0.1}}})", "p.json",
+      s));
+  m = errorOf([&] {
+    parseRigParams(
+        R"({"joints": {")" + joint + R"(": {"bulge_strength": 0.5}}})",
+        "p.json", s);
+  });
+  EXPECT_NE(m.find("needs operator bulge (the joint's operator is union, or "
+                   "blend if it is a limb joint)"),
+            std::string::npos)
+      << m;
 
   m = errorOf([&] {
     parseRigParams(R"({"defaults": {"operator": "max"}})", "p.json", s);

@@ -848,6 +848,26 @@ TEST(IskSkinTest, BadOperatorIsAUsageErrorNamingIt) {
   }
 }
 
+// The auto choice blends only the limb joints the rig has: builtin:arm has
+// no mirrored limbs, so --blend-theta changes nothing there unless a joint
+// is told to blend.
+TEST(IskSkinTest, BlendThetaWithoutABlendedJointOfTheRigIsWarnedAbout) {
+  const std::string warning =
+      "--blend-theta has no effect: no joint uses blend";
+  const std::vector<std::string> unused = {"builtin:arm", "--frames", "2",
+                                           "--blend-theta", "0.2"};
+  const RunOutput warned = runIskSkin(unused);
+  EXPECT_EQ(warned.exit_code, 0) << describe(unused, warned);
+  EXPECT_NE(warned.output.find(warning), std::string::npos)
+      << describe(unused, warned);
+  std::vector<std::string> used = unused;
+  used.insert(used.end(), {"--joint-operator", "elbow=blend"});
+  const RunOutput quiet = runIskSkin(used);
+  EXPECT_EQ(quiet.exit_code, 0) << describe(used, quiet);
+  EXPECT_EQ(quiet.output.find(warning), std::string::npos)
+      << describe(used, quiet);
+}
+
 TEST(IskSkinTest, UnknownJointNameIsAnErrorNamingItAndTheInput) {
   for (const std::string method : {"dqs", "implicit"}) {
     const std::vector<std::string> args = {"builtin:arm", "--method", method,

@@ -226,14 +226,19 @@ TEST(IskSkinOptions, UnusedControllersAreWarnedAbout) {
   Options options;
   options.bulge_strength_given = true;
   options.blend_theta_given = true;
-  CompositionOptions composition;  // auto: the limbs blend
-  EXPECT_EQ(samples::skin::unusedControllerWarnings(options, composition),
+  // The composition as built: two pairs, the first blended.
+  Composition built;
+  built.pairs.resize(2);
+  built.pairs[0].op = CompositionOperator::kBlend;
+  built.blended_pairs = {0};
+  EXPECT_EQ(samples::skin::unusedControllerWarnings(options, built),
             std::vector<std::string>{
                 "isk-skin: warning: --bulge-strength has no effect: no joint "
                 "uses bulge"});
-  composition.limb_operator.reset();  // union everywhere
+  built.pairs[0].op = CompositionOperator::kUnion;  // union everywhere
+  built.blended_pairs.clear();
   const std::vector<std::string> both =
-      samples::skin::unusedControllerWarnings(options, composition);
+      samples::skin::unusedControllerWarnings(options, built);
   ASSERT_EQ(both.size(), 2u);
   EXPECT_EQ(both[0],
             "isk-skin: warning: --bulge-strength has no effect: no joint "
@@ -241,10 +246,13 @@ TEST(IskSkinOptions, UnusedControllersAreWarnedAbout) {
   EXPECT_EQ(both[1],
             "isk-skin: warning: --blend-theta has no effect: no joint uses "
             "blend");
-  composition.joint_operators["elbow"] = CompositionOperator::kBulge;
-  composition.default_operator = CompositionOperator::kBlend;
-  EXPECT_TRUE(
-      samples::skin::unusedControllerWarnings(options, composition).empty());
+  built.pairs[0].op = CompositionOperator::kBulge;
+  built.pairs[1].op = CompositionOperator::kBlend;
+  built.blended_pairs = {0, 1};
+  EXPECT_TRUE(samples::skin::unusedControllerWarnings(options, built).empty());
+  options.bulge_strength_given = options.blend_theta_given = false;
+  built.blended_pairs.clear();
+  EXPECT_TRUE(samples::skin::unusedControllerWarnings(options, built).empty());
 }
 
 TEST(IskSkinOptions, UnknownJointIsAnErrorOnlyWhenOperatorsWereGiven) {

@@ -174,6 +174,25 @@ Composition buildComposition(const Skeleton& skeleton,
                              "with, so its operator (" +
                              compositionOperatorName(op) +
                              ") composes nothing");
+  // A controller only shapes a blend or a bulge (a joint left to the auto
+  // choice that is not a limb joint takes the union).
+  for (const auto& entry : options.joint_controllers) {
+    const std::string& name = entry.first;
+    const int j = skeleton.find(name);
+    if (!paired.count(name)) {
+      if (!options.joint_operators.count(name))
+        out.warnings.push_back("joint '" + name +
+                               "': no field on its bone or above it to pair "
+                               "with, so its controller composes nothing");
+    } else if (out.operatorAt(j) == CompositionOperator::kUnion)
+      out.warnings.push_back("joint '" + name +
+                             "': its controller has no effect: the joint "
+                             "composes with the union" +
+                             (options.limb_operator && !is_limb[j] &&
+                                      !options.joint_operators.count(name)
+                                  ? " (it is not a limb joint)"
+                                  : ""));
+  }
 
   // One table per operator in use, in a fixed order.
   std::vector<CompositionOperator> kinds;

@@ -176,19 +176,33 @@ RigParams parseRigParams(const std::string& text, const std::string& file,
                  "blend_theta, theta_curve or tracked)");
           }
         }
-        const CompositionOperator op = jp.op.value_or(params.default_operator);
         if (jp.theta_curve && (jp.bulge_strength || jp.blend_theta))
           fail(file, at + ": " + keyName("theta_curve"),
                "replaces the controller: drop bulge_strength and "
                "blend_theta");
-        if (jp.bulge_strength && op != CompositionOperator::kBulge)
+        // Without an operator of its own the joint takes the default one,
+        // or under "auto" the limbs' one if it is a limb joint (known once
+        // the fields are built: buildComposition warns if it is not).
+        const CompositionOperator op = jp.op.value_or(params.default_operator);
+        const bool may_be_limb = !jp.op && params.limb_operator;
+        auto takes = [&](CompositionOperator wanted) {
+          return op == wanted ||
+                 (may_be_limb && *params.limb_operator == wanted);
+        };
+        const std::string operator_is =
+            std::string(" (the joint's operator is ") +
+            compositionOperatorName(op) +
+            (may_be_limb ? std::string(", or ") +
+                               compositionOperatorName(*params.limb_operator) +
+                               " if it is a limb joint"
+                         : std::string()) +
+            ")";
+        if (jp.bulge_strength && !takes(CompositionOperator::kBulge))
           fail(file, at + ": " + keyName("bulge_strength"),
-               std::string("needs operator bulge (the joint's operator is ") +
-                   compositionOperatorName(op) + ")");
-        if (jp.blend_theta && op != CompositionOperator::kBlend)
+               "needs operator bulge" + operator_is);
+        if (jp.blend_theta && !takes(CompositionOperator::kBlend))
           fail(file, at + ": " + keyName("blend_theta"),
-               std::string("needs operator blend (the joint's operator is ") +
-                   compositionOperatorName(op) + ")");
+               "needs operator blend" + operator_is);
         params.joints[joint] = jp;
       }
     } else {

@@ -30,7 +30,10 @@
 // joint's bone meets its parent's, section 4.2); "samples" the Poisson-disk
 // target of the joint's own part; "bulge_strength" and "blend_theta" shape
 // the joint's default controller (Figure 7) and need that joint's operator
-// to be bulge or blend respectively; "theta_curve" replaces the controller
+// to be bulge or blend respectively (a joint without an operator of its own
+// under "auto" may take blend_theta: if it is not a limb joint, the
+// composition warns that the controller has no effect); "theta_curve"
+// replaces the controller
 // by theta samples (radians in [0, pi/4]) taken uniformly over the angle
 // alpha in [0, pi] between the two fields' gradients (at least 2 samples),
 // and excludes the two keys before it; "tracked": false leaves the joint's
