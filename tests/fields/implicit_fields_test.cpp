@@ -1148,6 +1148,19 @@ TEST(ImplicitFields, PartWithTooFewSamplesGetsNoFieldAndAWarning) {
   EXPECT_TRUE(hasWarning(fields, name, "at least 4"));
   EXPECT_EQ(fields.grids.fieldCount(), 2);
   for (float iso : fields.iso_values) ASSERT_TRUE(std::isfinite(iso));
+  // The part still has its joint in partition.field_joints, so the per-field
+  // arrays no longer follow that list: field i is fields[i].joint's, the
+  // same joint as its grid's and its samples', found by field_of_joint.
+  EXPECT_EQ(fields.partition.field_joints.size(), 3u);
+  ASSERT_EQ(fields.fields.size(), 2u);
+  ASSERT_EQ(fields.samples.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    const int joint = fields.fields[i].joint;
+    EXPECT_EQ(fields.grids.grids[i].joint, joint) << i;
+    EXPECT_EQ(fields.samples[i].joint, joint) << i;
+    EXPECT_EQ(fields.grids.field_of_joint[joint], i) << i;
+  }
+  EXPECT_EQ(fields.fields[1].joint, fields.partition.field_joints[2]);
 
   // A part of 3 vertices: sampled from its vertices and triangles, never a
   // crash; either a field from 4 or more samples or a warning naming it.

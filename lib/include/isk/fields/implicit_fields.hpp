@@ -108,7 +108,10 @@ enum class FieldCacheOrigin {
 const char* fieldCacheOriginName(FieldCacheOrigin origin);
 
 // A character's implicit fields, every stage's result. "Per field" arrays
-// have one entry per joint with a part (partition.field_joints order).
+// have one entry per fitted field, in joint order: the joints with a part
+// (partition.field_joints) less those whose fit failed (a warning names
+// them), so field i belongs to fields[i].joint (= grids.grids[i].joint), and
+// joint j's field is grids.field_of_joint[j] -- not partition.field_joints[i].
 struct ImplicitFields {
   BonePartition partition;
   std::vector<BoneSamples> samples;  // per field
