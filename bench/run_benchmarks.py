@@ -747,7 +747,7 @@ def implicit_section(results):
 LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
           "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
-          "sigma-0.7", "sigma-1", "no-fold-guard")
+          "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator")
 
 
 def moved(run):
@@ -818,7 +818,13 @@ def levers_section(results):
               "accuracy; and 'no-fold-guard': every switch on, and the "
               "strain limit without its fold guard "
               "(`SurfaceTrackingOptions::fold_guard`, docs/algorithm.md), "
-              "so that 'frame / all' below 1 is what the guard costs. "
+              "so that 'frame / all' below 1 is what the guard costs; and "
+              "'union-operator': every switch on, and the fields composed "
+              "with the union at every joint (the paper's default, "
+              "`--operator union`) instead of the library's default, which "
+              "blends at the joints of mirrored limbs "
+              "(`CompositionOptions::limb_operator`), so that 'frame / all' "
+              "below 1 is what the blend costs. "
               "'moved' says how far each frame lies from the "
               "paired frame of the same pose: the mean and the largest "
               "distance of a vertex, over the rest mesh's bounding-box "
