@@ -213,18 +213,22 @@ class PyImplicitSkinner {
         (*callback)(stage, fraction);
       };
     }
-    py::gil_scoped_release release;
-    const auto start = Clock::now();
-    if (selection) {
-      const SharedDevice shared = sharedDevice(*selection);
-      mutex_ = shared.mutex;
-      std::lock_guard<std::mutex> lock(*mutex_);
-      device_ =
-          std::make_unique<ImplicitSkinner>(shared.context, *rig_, options);
-    } else {
-      reference_ = std::make_unique<CpuImplicitSkinner>(*rig_, options);
+    {
+      py::gil_scoped_release release;
+      const auto start = Clock::now();
+      if (selection) {
+        const SharedDevice shared = sharedDevice(*selection);
+        mutex_ = shared.mutex;
+        std::lock_guard<std::mutex> lock(*mutex_);
+        device_ =
+            std::make_unique<ImplicitSkinner>(shared.context, *rig_, options);
+      } else {
+        reference_ = std::make_unique<CpuImplicitSkinner>(*rig_, options);
+      }
+      build_ms_ = millisecondsSince(start);
     }
-    build_ms_ = millisecondsSince(start);
+    warnings_ = fields().warnings;
+    warnUnusedControllers(bulge_strength.has_value(), blend_theta.has_value());
   }
 
   void run(py::handle matrices) {
@@ -259,6 +263,9 @@ class PyImplicitSkinner {
   const ImplicitFields& fields() const {
     return device_ ? device_->fields() : reference_->fields();
   }
+  // The fields' build warnings, then the controller settings that shape no
+  // joint of the built composition.
+  const std::vector<std::string>& warnings() const { return warnings_; }
   py::dict stageTimes() {
     ImplicitStageTimes times;
     {
@@ -281,7 +288,28 @@ class PyImplicitSkinner {
     return readLastFrame(*mutex_, device_.get(), reference_.get(), positions);
   }
 
+  // As isk-skin's --blend-theta / --bulge-strength: a setting given for an
+  // operator no joint composes with (under 'auto' a rig without mirrored
+  // limbs blends nowhere) changes nothing, so it is said, in `warnings` and
+  // as a Python UserWarning.
+  void warnUnusedControllers(bool bulge_strength_given,
+                             bool blend_theta_given) {
+    const Composition& built = fields().composition;
+    std::vector<std::string> unused;
+    if (bulge_strength_given && !built.uses(CompositionOperator::kBulge))
+      unused.push_back("bulge_strength has no effect: no joint uses bulge");
+    if (blend_theta_given && !built.uses(CompositionOperator::kBlend))
+      unused.push_back("blend_theta has no effect: no joint uses blend");
+    for (const std::string& warning : unused) {
+      warnings_.push_back(warning);
+      if (PyErr_WarnEx(PyExc_UserWarning,
+                       ("ImplicitSkinner: " + warning).c_str(), 1) != 0)
+        throw py::error_already_set();
+    }
+  }
+
   RigPtr rig_;
+  std::vector<std::string> warnings_;
   std::unique_ptr<ImplicitSkinner> device_;
   std::unique_ptr<CpuImplicitSkinner> reference_;
   // The device's lock, or this skinner's own on the CPU reference.
@@ -405,8 +433,7 @@ void registerSkinners(py::module_& m) {
                                return s.rig().skeleton.jointCount();
                              })
       .def_property_readonly(
-          "warnings",
-          [](const PyImplicitSkinner& s) { return s.fields().warnings; })
+          "warnings", [](const PyImplicitSkinner& s) { return s.warnings(); })
       .def_property_readonly("cache_origin", [](const PyImplicitSkinner& s) {
         return std::string(fieldCacheOriginName(s.fields().cache_origin));
       });

@@ -2,6 +2,8 @@
 implicit skinning, on the OpenCL device and on the CPU reference, on the
 procedural rigs and on two shared assets."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -111,6 +113,28 @@ def test_operator_controllers_shape_the_frames():
     with pytest.raises(isk.InvalidArgumentError, match="blend_theta"):
         isk.ImplicitSkinner(rig, device="reference", operator="blend",
                             blend_theta=-0.1)
+
+
+def test_controller_for_an_operator_no_joint_uses_is_warned_about():
+    # The arm has no mirrored limbs: under 'auto' it blends nowhere, so
+    # blend_theta changes nothing, and the skinner says so (as isk-skin's
+    # --blend-theta does); with the elbow blended it shapes the elbow.
+    rig = isk.builtin_rig("arm")
+    with pytest.warns(UserWarning, match="blend_theta has no effect"):
+        unused = isk.ImplicitSkinner(rig, device="reference", blend_theta=0.5)
+    assert "blend_theta has no effect: no joint uses blend" in unused.warnings
+    with pytest.warns(UserWarning, match="bulge_strength has no effect"):
+        isk.ImplicitSkinner(rig, device="reference", operator="blend",
+                            bulge_strength=0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        used = isk.ImplicitSkinner(rig, device="reference", blend_theta=0.5,
+                                   joint_operators={"elbow": "blend"})
+    assert not any("no effect" in w for w in used.warnings)
+    pose = rig.bend_pose(120)
+    default = isk.ImplicitSkinner(rig, device="reference",
+                                  joint_operators={"elbow": "blend"})
+    assert not np.array_equal(used.deform(pose)[0], default.deform(pose)[0])
 
 
 def test_volume_restore_option_reaches_the_tracking():

@@ -402,19 +402,14 @@ std::string trackingOptionsWarning(const Options& options) {
 
 std::vector<std::string> unusedControllerWarnings(const Options& options,
                                                   const Composition& built) {
-  auto used = [&](CompositionOperator op) {
-    for (const int k : built.blended_pairs) {
-      if (built.pairs[k].op == op) return true;
-    }
-    return false;
-  };
   std::vector<std::string> warnings;
-  if (options.bulge_strength_given && !used(CompositionOperator::kBulge)) {
+  if (options.bulge_strength_given &&
+      !built.uses(CompositionOperator::kBulge)) {
     warnings.push_back(
         "isk-skin: warning: --bulge-strength has no effect: no joint uses "
         "bulge");
   }
-  if (options.blend_theta_given && !used(CompositionOperator::kBlend)) {
+  if (options.blend_theta_given && !built.uses(CompositionOperator::kBlend)) {
     warnings.push_back(
         "isk-skin: warning: --blend-theta has no effect: no joint uses "
         "blend");

@@ -105,6 +105,10 @@ TEST(FieldComposition, PairsFollowTheSkeletonAndTheChoices) {
   EXPECT_EQ(c.pairs[1].op, CompositionOperator::kUnion);
   EXPECT_EQ(c.operatorAt(elbow), CompositionOperator::kBlend);
   EXPECT_EQ(c.operatorAt(wrist), CompositionOperator::kUnion);
+  // The shoulder has no pair, so its bulge is used nowhere.
+  EXPECT_TRUE(c.uses(CompositionOperator::kBlend));
+  EXPECT_TRUE(c.uses(CompositionOperator::kUnion));
+  EXPECT_FALSE(c.uses(CompositionOperator::kBulge));
   ASSERT_EQ(c.blended_pairs, std::vector<int>{0});
   ASSERT_EQ(c.tables.size(), 1u);
   EXPECT_EQ(c.tables[0]->op, CompositionOperator::kBlend);
@@ -122,6 +126,8 @@ TEST(FieldComposition, PairsFollowTheSkeletonAndTheChoices) {
   const Composition plain = buildComposition(rig.skeleton, grids);
   EXPECT_TRUE(plain.blended_pairs.empty());
   EXPECT_TRUE(plain.tables.empty());
+  EXPECT_FALSE(plain.uses(CompositionOperator::kBlend));
+  EXPECT_FALSE(plain.uses(CompositionOperator::kBulge));
   EXPECT_EQ(describeComposition(plain, rig.skeleton), "union at every joint");
 }
 

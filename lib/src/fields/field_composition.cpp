@@ -56,6 +56,12 @@ CompositionOperator Composition::operatorAt(int joint) const {
   return CompositionOperator::kUnion;
 }
 
+bool Composition::uses(CompositionOperator op) const {
+  for (const FieldPair& p : pairs)
+    if (p.op == op) return true;
+  return false;
+}
+
 size_t Composition::tableBytes() const {
   size_t bytes = 0;
   for (const auto& t : tables) bytes += t->bytes();

@@ -92,6 +92,10 @@ struct Composition {
 
   // The operator of the pair at joint j (union when j has none).
   CompositionOperator operatorAt(int joint) const;
+  // Whether some pair composes with `op` (blend or bulge; the union: some
+  // pair at all). A global controller setting (blend_theta,
+  // bulge_strength) shapes nothing where its operator is not used.
+  bool uses(CompositionOperator op) const;
   // Bytes of the operator tables (what the device holds for them).
   size_t tableBytes() const;
 };
