@@ -2,12 +2,13 @@
 // known value (rest pose, uniform scale, one vertex pushed out, a pop in the
 // third frame), the contact region, the summary's worst frame, the measures
 // on every asset and procedural rig at rest and bent, the per-part
-// measures, and bad input.
+// measures (the new pairs each part touches among them), and bad input.
 #include "isk/tools/skin_quality.hpp"
 
 #include <gtest/gtest.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "isk/core/error.hpp"
@@ -24,6 +25,21 @@ namespace {
 
 std::vector<int> groupsOf(const Mesh& mesh) {
   return coincidentVertexGroups(mesh.positions);
+}
+
+// How many of `pairs` (triangle indices) have a corner of either triangle
+// in `part`: PartQuality::new_pairs, counted directly.
+long long pairsTouching(int part, const std::vector<std::pair<int, int>>& pairs,
+                        const Mesh& mesh, const std::vector<int>& parts) {
+  long long count = 0;
+  for (const auto& [a, b] : pairs) {
+    bool touches = false;
+    for (int c = 0; c < 3; ++c)
+      touches = touches || parts[mesh.triangles(a, c)] == part ||
+                parts[mesh.triangles(b, c)] == part;
+    count += touches ? 1 : 0;
+  }
+  return count;
 }
 
 TEST(SkinQuality, RestPoseMeasuresNothing) {
@@ -224,6 +240,45 @@ TEST(SkinQuality, PartsShowWhereTheFrameDepartsFromDqs) {
   EXPECT_TRUE(plain.measure(bumped, &mesh.positions).parts.empty());
 }
 
+TEST(SkinQuality, PartsCountTheNewPairsTheyTouch) {
+  const Rig rig = makeCylinderRig();
+  const Mesh& mesh = rig.mesh;
+  SkinQualityOptions options;
+  options.vertex_parts = partitionMesh(rig).vertex_joint;
+  SkinQuality quality(mesh, groupsOf(mesh), options);
+  const int v = midSurfaceVertex(mesh);
+  Matrix3Xf spiked = mesh.positions;
+  const Eigen::RowVector3f radial(0, spiked(v, 1), spiked(v, 2));
+  spiked.row(v) -= 2.5f * radial;  // through the axis and out the far side
+  const FrameQuality q = quality.measure(spiked, &mesh.positions);
+  ASSERT_GT(q.new_self_intersections, 0);
+  const std::vector<std::pair<int, int>> pairs = quality.lastNewPairs();
+  long long spiked_part_pairs = 0;
+  for (const PartQuality& p : q.parts) {
+    SCOPED_TRACE("part " + std::to_string(p.part));
+    EXPECT_EQ(p.new_pairs,
+              pairsTouching(p.part, pairs, mesh, options.vertex_parts));
+    EXPECT_LE(p.new_pairs, q.new_self_intersections);
+    EXPECT_EQ(p.dqs_new_pairs, 0);  // the rest pose is the DQS frame
+    if (p.part == options.vertex_parts[v]) spiked_part_pairs = p.new_pairs;
+  }
+  EXPECT_GT(spiked_part_pairs, 0);
+  // The spiked frame as its own DQS frame: DQS's pairs are the frame's;
+  // over a clip, the sums.
+  const FrameQuality self = quality.measure(spiked, &spiked);
+  ASSERT_EQ(self.parts.size(), q.parts.size());
+  for (size_t k = 0; k < q.parts.size(); ++k) {
+    EXPECT_EQ(self.parts[k].new_pairs, q.parts[k].new_pairs);
+    EXPECT_EQ(self.parts[k].dqs_new_pairs, q.parts[k].new_pairs);
+  }
+  const QualitySummary summary = summarizeQuality({q, self});
+  ASSERT_EQ(summary.parts.size(), q.parts.size());
+  for (size_t k = 0; k < q.parts.size(); ++k) {
+    EXPECT_EQ(summary.parts[k].new_pairs, 2 * q.parts[k].new_pairs);
+    EXPECT_EQ(summary.parts[k].dqs_new_pairs, q.parts[k].new_pairs);
+  }
+}
+
 TEST(SkinQuality, BadSizesAreClearErrors) {
   const Rig rig = makeCylinderRig();
   EXPECT_THROW(SkinQuality(rig.mesh, std::vector<int>(3, 0)), Error);
@@ -291,11 +346,17 @@ void checkRestAndBend(const Rig& rig, const std::string& name,
   for (const PartQuality& p : pd.parts) {
     EXPECT_EQ(p.edge_strain_mean, p.dqs_edge_strain_mean);
     EXPECT_EQ(p.dqs_distance_max, 0);
+    EXPECT_EQ(p.new_pairs, p.dqs_new_pairs);
+    EXPECT_EQ(p.new_pairs, pairsTouching(p.part, by_part.lastNewPairs(),
+                                         rig.mesh, options.vertex_parts));
   }
   const FrameQuality pl = by_part.measure(lbs.positions(), &dqs.positions());
   double largest = 0;
-  for (const PartQuality& p : pl.parts)
+  for (const PartQuality& p : pl.parts) {
     largest = std::max(largest, p.dqs_distance_max);
+    EXPECT_EQ(p.new_pairs, pairsTouching(p.part, by_part.lastNewPairs(),
+                                         rig.mesh, options.vertex_parts));
+  }
   EXPECT_GE(largest, pl.dqs_distance_max);
   if (bends_every_part) EXPECT_GT(largest, 0);
 }

@@ -55,6 +55,29 @@ Cell cellOf(const Eigen::RowVector3f& p, float cell) {
           static_cast<int64_t>(std::floor(p.z() / cell))};
 }
 
+// Adds to each part's `count` the pairs (triangle indices) with a corner of
+// either triangle in it, once per pair and part; `index` maps part ids to
+// `parts`.
+void countPartPairs(const std::vector<std::pair<int, int>>& pairs,
+                    const TriangleMatrix& triangles,
+                    const std::vector<int>& vertex_parts,
+                    const std::map<int, size_t>& index,
+                    long long PartQuality::*count,
+                    std::vector<PartQuality>* parts) {
+  std::vector<size_t> touched;
+  for (const auto& [t0, t1] : pairs) {
+    touched.clear();
+    for (const int t : {t0, t1})
+      for (int c = 0; c < 3; ++c) {
+        const auto it = index.find(vertex_parts[triangles(t, c)]);
+        if (it != index.end()) touched.push_back(it->second);
+      }
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    for (const size_t k : touched) ++((*parts)[k].*count);
+  }
+}
+
 }  // namespace
 
 SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
@@ -225,6 +248,9 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
   if (!edges_.empty()) q.edge_strain_mean = strain_sum / edges_.size();
 
   const Matrix3Xf& reference = dqs ? *dqs : positions;
+  const std::vector<std::pair<int, int>> reference_new =
+      dqs ? notIn(pairsOf(*dqs, triangles_, groups_), rest_pairs_)
+          : last_new_pairs_;
   if (!part_ids_.empty()) {
     auto strainOf = [&](const Matrix3Xf& x, int e) {
       const auto [a, b] = edges_[e];
@@ -255,10 +281,11 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
       largest = std::max(
           largest, (positions.row(v) - reference.row(v)).norm() * inverse);
     }
+    countPartPairs(last_new_pairs_, triangles_, options_.vertex_parts, index,
+                   &PartQuality::new_pairs, &q.parts);
+    countPartPairs(reference_new, triangles_, options_.vertex_parts, index,
+                   &PartQuality::dqs_new_pairs, &q.parts);
   }
-  const std::vector<std::pair<int, int>> reference_new =
-      dqs ? notIn(pairsOf(*dqs, triangles_, groups_), rest_pairs_)
-          : last_new_pairs_;
   const std::vector<uint8_t> region =
       contactRegion(reference, contacts, reference_new);
   const double scale = diagonal_ > 0 ? 1.0 / diagonal_ : 1.0;
@@ -360,6 +387,8 @@ QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames) {
       sum.edge_strain_mean += p.edge_strain_mean;
       sum.dqs_edge_strain_mean += p.dqs_edge_strain_mean;
       sum.dqs_distance_max = std::max(sum.dqs_distance_max, p.dqs_distance_max);
+      sum.new_pairs += p.new_pairs;
+      sum.dqs_new_pairs += p.dqs_new_pairs;
       ++count;
     }
   }

@@ -18,8 +18,9 @@
 //     over three frames minus that of its DQS positions, over the diagonal;
 //   - lost vertices (the tracking's, given by the caller);
 //   - optionally, per part of the mesh (a bone's part: BonePartition's
-//     vertex_joint), the edge strain against DQS's and the largest distance
-//     from DQS: where on the character a deformation departs from skinning.
+//     vertex_joint), the edge strain against DQS's, the largest distance
+//     from DQS and the new intersecting pairs against DQS's: where on the
+//     character a deformation departs from skinning.
 #pragma once
 
 #include <cstdint>
@@ -55,6 +56,10 @@ struct PartQuality {
   // Largest distance of the part's vertices from their DQS positions
   // (contacts included), over the rest diagonal.
   double dqs_distance_max = 0;
+  // The frame's new self-intersecting pairs (not at rest) with a corner of
+  // either triangle in the part (a pair counts once in each part it
+  // touches), and the DQS frame's; over a clip, their sums.
+  long long new_pairs = 0, dqs_new_pairs = 0;
 };
 
 struct FrameQuality {
@@ -95,7 +100,7 @@ struct QualitySummary {
   // the one whose volume is furthest from the rest volume; then the first.
   int worst_frame = -1;
   // Per part (the frames' parts): mean over the frames of the strains, the
-  // largest distance; by ascending id.
+  // largest distance, the sums of the new pairs; by ascending id.
   std::vector<PartQuality> parts;
 };
 
