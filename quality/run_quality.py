@@ -795,6 +795,21 @@ def parts_line(run, count=3):
             + "; ".join(shown) + ".")
 
 
+def pair_parts_line(run, count=3):
+    """The parts whose new self-intersecting pairs (summed over the frames)
+    exceed DQS's most in an implicit run's report (quality.parts), or ''."""
+    parts = [p for p in (quality_of(run).get("parts") or [])
+             if "new_pairs" in p and p["new_pairs"] > p["dqs_new_pairs"]]
+    parts.sort(key=lambda p: p["dqs_new_pairs"] - p["new_pairs"])
+    shown = [f"{p['joint']} {p['new_pairs']:,} (DQS {p['dqs_new_pairs']:,})"
+             for p in parts[:count]]
+    if not shown:
+        return ""
+    return ("Parts whose new pairs exceed DQS's most (implicit default, "
+            "summed over the frames, a pair counted in each part it touches; "
+            "`isk-skin --report`'s quality.parts): " + "; ".join(shown) + ".")
+
+
 def case_section(case, images_rel, pictures_note):
     lines = [f'<a id="{case["slug"]}"></a>', "",
              f"### {case_title(case)}", ""]
@@ -816,9 +831,10 @@ def case_section(case, images_rel, pictures_note):
                                for k in IMPLICIT_KEYS])
     lines += table(["target"] + [METHOD_LABEL[k] for k in IMPLICIT_KEYS],
                    rows, ["l"] * (len(IMPLICIT_KEYS) + 1))
-    parts = parts_line(runs.get(DEFAULT_IMPLICIT))
-    if parts:
-        lines += [parts, ""]
+    for parts in (parts_line(runs.get(DEFAULT_IMPLICIT)),
+                  pair_parts_line(runs.get(DEFAULT_IMPLICIT))):
+        if parts:
+            lines += [parts, ""]
     if case["picture"]:
         picture = case.get("picture_file")
         if picture:

@@ -326,6 +326,29 @@ class Render(unittest.TestCase):
         case["runs"][rq.DEFAULT_IMPLICIT] = run
         self.assertIn(line, rq.case_section(case, "images", None))
 
+    def test_pair_parts_line(self):
+        run = ok([frame(new=0)] * 3)
+        self.assertEqual(rq.pair_parts_line(run), "")  # no parts
+        run["report"]["quality"]["parts"] = [
+            {"joint": "Palm1.L", "edges": 90, "edge_strain_mean": 0.2,
+             "dqs_edge_strain_mean": 0.1, "dqs_distance_max": 0.01,
+             "new_pairs": 186, "dqs_new_pairs": 16},
+            {"joint": "Index.L", "edges": 30, "edge_strain_mean": 0.2,
+             "dqs_edge_strain_mean": 0.1, "dqs_distance_max": 0.01,
+             "new_pairs": 1180, "dqs_new_pairs": 1000},
+            {"joint": "Head", "edges": 3000, "edge_strain_mean": 0.01,
+             "dqs_edge_strain_mean": 0.01, "dqs_distance_max": 0.0,
+             "new_pairs": 40, "dqs_new_pairs": 400}]
+        line = rq.pair_parts_line(run)
+        # By excess over DQS's: Index.L 180 before Palm1.L 170.
+        self.assertIn("Index.L 1,180 (DQS 1,000); Palm1.L 186 (DQS 16).",
+                      line)
+        self.assertNotIn("Head", line)  # fewer than DQS
+        self.assertEqual(rq.pair_parts_line(failed()), "")
+        case = make_case_with_runs()
+        case["runs"][rq.DEFAULT_IMPLICIT] = run
+        self.assertIn(line, rq.case_section(case, "images", None))
+
     def test_precision(self):
         self.assertEqual(rq.fmt_volume(0.912345), "0.9123")
         self.assertEqual(rq.fmt_strain(0.12345), "0.123")

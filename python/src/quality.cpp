@@ -32,6 +32,8 @@ py::list partsList(const std::vector<PartQuality>& parts, const Rig& rig) {
     part["edge_strain_mean"] = p.edge_strain_mean;
     part["dqs_edge_strain_mean"] = p.dqs_edge_strain_mean;
     part["dqs_distance_max"] = p.dqs_distance_max;
+    part["new_pairs"] = p.new_pairs;
+    part["dqs_new_pairs"] = p.dqs_new_pairs;
     out.append(part);
   }
   return out;

@@ -83,6 +83,11 @@ def test_a_vertex_through_the_skin_is_a_new_pair():
     assert all(p["edge_strain_mean"] > 0 for p in parts)
     moved = [p["dqs_distance_max"] for p in parts]
     assert sorted(moved)[0] == 0 and sorted(moved)[1] > 0
+    # The new pairs the pushed vertex makes are its part's (DQS, the rest
+    # pose, has none).
+    assert all(p["dqs_new_pairs"] == 0 for p in parts)
+    assert max(p["new_pairs"] for p in parts) > 0
+    assert all(p["new_pairs"] <= q["new_self_intersections"] for p in parts)
 
 
 def isk_skin_exe():
@@ -156,6 +161,8 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
     for part in summary["parts"]:
         reported = by_joint[part["joint"]]
         assert part["edges"] == reported["edges"]
+        assert part["new_pairs"] == reported["new_pairs"]
+        assert part["dqs_new_pairs"] == reported["dqs_new_pairs"]
         for key in ("edge_strain_mean", "dqs_edge_strain_mean",
                     "dqs_distance_max"):
             assert part[key] == pytest.approx(reported[key], rel=1e-9,

@@ -105,7 +105,9 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result,
                        {"edges", p.edges},
                        {"edge_strain_mean", p.edge_strain_mean},
                        {"dqs_edge_strain_mean", p.dqs_edge_strain_mean},
-                       {"dqs_distance_max", p.dqs_distance_max}});
+                       {"dqs_distance_max", p.dqs_distance_max},
+                       {"new_pairs", p.new_pairs},
+                       {"dqs_new_pairs", p.dqs_new_pairs}});
     }
     quality["parts"] = parts;
   }
@@ -295,6 +297,38 @@ std::string formatPartsSummary(const RunResult& result,
   }
   if (shown == 0) return "";
   out << " (--untracked-joint keeps a part on skinning)\n";
+  return out.str();
+}
+
+std::vector<PartQuality> partsByExcessPairs(const QualitySummary& summary) {
+  std::vector<PartQuality> parts = summary.parts;
+  std::stable_sort(parts.begin(), parts.end(),
+                   [](const PartQuality& a, const PartQuality& b) {
+                     return a.new_pairs - a.dqs_new_pairs >
+                            b.new_pairs - b.dqs_new_pairs;
+                   });
+  return parts;
+}
+
+std::string formatPairPartsSummary(const RunResult& result,
+                                   const Skeleton& skeleton, int count) {
+  if (result.quality.empty()) return "";
+  const std::vector<PartQuality> parts =
+      partsByExcessPairs(summarizeQuality(result.quality));
+  std::ostringstream out;
+  out << "isk-skin: parts whose new intersecting pairs exceed DQS's most:";
+  int shown = 0;
+  for (const PartQuality& p : parts) {
+    if (shown == count || !(p.new_pairs > p.dqs_new_pairs)) break;
+    out << (shown ? "; " : " ")
+        << (p.part < skeleton.jointCount() ? skeleton.joints[p.part].name
+                                           : std::to_string(p.part))
+        << " " << p.new_pairs << " (DQS " << p.dqs_new_pairs << ")";
+    ++shown;
+  }
+  if (shown == 0) return "";
+  out << " (summed over the frames; --untracked-joint keeps a part on "
+         "skinning)\n";
   return out.str();
 }
 

@@ -71,6 +71,16 @@ std::vector<PartQuality> partsByExcessStrain(const QualitySummary& summary);
 std::string formatPartsSummary(const RunResult& result,
                                const Skeleton& skeleton, int count = 3);
 
+// The summary's parts, the largest excess of new intersecting pairs over
+// DQS's first (new_pairs - dqs_new_pairs, summed over the frames).
+std::vector<PartQuality> partsByExcessPairs(const QualitySummary& summary);
+
+// One line naming the `count` parts whose new intersecting pairs exceed
+// DQS's most (with DQS's), for the console; empty when no frame was measured
+// or no part has more than DQS.
+std::string formatPairPartsSummary(const RunResult& result,
+                                   const Skeleton& skeleton, int count = 3);
+
 std::string formatRunSummary(const Options& options,
                              const std::string& clip_name,
                              const std::string& device_name,

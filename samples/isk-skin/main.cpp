@@ -409,8 +409,10 @@ void sayHowItWent(const Options& options, const isk::Rig& rig,
                   const RunResult& result, const IsoDriftProbe* probe) {
   std::cerr << skin::formatRunSummary(options, clip.name, skinner.describe(),
                                       result);
-  if (options.method == "implicit")
+  if (options.method == "implicit") {
     std::cerr << skin::formatPartsSummary(result, rig.skeleton);
+    std::cerr << skin::formatPairPartsSummary(result, rig.skeleton);
+  }
   if (probe) {
     std::cerr << skin::formatIsoDriftSummary(probe->describe(), probe->drift());
   }

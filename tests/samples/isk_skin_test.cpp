@@ -1011,9 +1011,12 @@ TEST(IskSkinTest, PartsAreReportedByTheirExcessStrain) {
                             p["dqs_edge_strain_mean"].get<double>();
       EXPECT_LE(excess, previous + 1e-12) << parts.dump(2);
       previous = excess;
+      EXPECT_GE(p["new_pairs"].get<long long>(), 0);
+      EXPECT_GE(p["dqs_new_pairs"].get<long long>(), 0);
       if (method == "dqs") {
         EXPECT_EQ(excess, 0);
         EXPECT_EQ(p["dqs_distance_max"].get<double>(), 0);
+        EXPECT_EQ(p["new_pairs"], p["dqs_new_pairs"]);
       }
     }
     EXPECT_EQ(joints.size(), parts.size());
@@ -1032,6 +1035,47 @@ TEST(IskSkinTest, PartsAreReportedByTheirExcessStrain) {
           << run.output;
     }
   }
+}
+
+// RobotExpressive's implicit frames make more new pairs than DQS's in its
+// hands (boxes of 16 to 61 vertices): the console names a hand's part first
+// by new pairs beyond DQS's, as the report's quality.parts counts them.
+TEST(IskSkinTest, PartsBeyondDqsPairsAreNamedOnAnAsset) {
+  if (!test::haveAssets()) {
+    GTEST_SKIP() << test::missingAssetsMessage(
+        "isk-skin's parts by new pairs on RobotExpressive.glb");
+  }
+  ScopedTempDir dir;
+  const std::vector<std::string> args = {
+      samples::dataFile("RobotExpressive.glb"),
+      "--method",
+      "implicit",
+      "--frames",
+      "6",
+      "--report",
+      dir / "report.json"};
+  const RunOutput run = runIskSkin(args);
+  ASSERT_EQ(run.exit_code, 0) << describe(args, run);
+  const std::string line =
+      "parts whose new intersecting pairs exceed DQS's most: ";
+  const size_t at = run.output.find(line);
+  ASSERT_NE(at, std::string::npos) << run.output;
+  const std::string first = run.output.substr(
+      at + line.size(),
+      run.output.find(' ', at + line.size()) - (at + line.size()));
+  bool hand = false;
+  for (const std::string prefix : {"Palm", "Index", "Middle", "Ring", "Thumb"})
+    hand = hand || first.rfind(prefix, 0) == 0;
+  EXPECT_TRUE(hand) << first << "\n" << run.output;
+  long long most = 0;
+  const nlohmann::json report = readReport(dir / "report.json");
+  for (const nlohmann::json& p : report["quality"]["parts"]) {
+    const long long excess =
+        p["new_pairs"].get<long long>() - p["dqs_new_pairs"].get<long long>();
+    if (p["joint"] == first) EXPECT_GT(excess, 0) << p.dump();
+    most = std::max(most, excess);
+  }
+  EXPECT_GT(most, 0);
 }
 
 TEST(IskSkinTest, OperatorChoiceChangesTheIsoDrift) {

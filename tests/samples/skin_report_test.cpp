@@ -1,13 +1,15 @@
 // isk-skin's report and summary lines (samples/common/skin_report.hpp),
 // assembled from results made up here, without a device: the report's
 // fields for each method and quality measure, the implicit fields' section
-// with and without a measured drift, and the stderr lines word for word.
+// with and without a measured drift, and the stderr lines word for word
+// (the parts by new pairs beyond DQS's among them).
 #include "skin_report.hpp"
 
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "isk/tools/procedural.hpp"
 #include "test_support.hpp"
@@ -176,6 +178,44 @@ TEST(IskSkinReport, IsoDriftLineWordForWord) {
   EXPECT_EQ(samples::skin::formatIsoDriftSummary("blend at elbow", drift),
             "isk-skin: implicit fields (blend at elbow): iso drift mean "
             "0.01235, max 0.5; field evaluation 1.5 ms/frame\n");
+}
+
+TEST(IskSkinReport, PartsByExcessPairsLineWordForWord) {
+  // Two frames of a 3-joint cylinder: part 1 has more new pairs than DQS,
+  // part 2 more still, part 0 fewer.
+  const Rig rig = makeCylinderRig();
+  RunResult result = madeUpResult();
+  for (int frame = 0; frame < 2; ++frame) {
+    FrameQuality q;
+    for (int part = 0; part < 3; ++part) {
+      PartQuality p;
+      p.part = part;
+      p.edges = 10;
+      p.new_pairs = part == 0 ? 1 : part == 1 ? 3 : 5;
+      p.dqs_new_pairs = part == 0 ? 4 : 2;
+      q.parts.push_back(p);
+    }
+    result.quality.push_back(q);
+  }
+  const std::vector<std::string> names = {rig.skeleton.joints[0].name,
+                                          rig.skeleton.joints[1].name,
+                                          rig.skeleton.joints[2].name};
+  EXPECT_EQ(samples::skin::formatPairPartsSummary(result, rig.skeleton),
+            "isk-skin: parts whose new intersecting pairs exceed DQS's most: " +
+                names[2] + " 10 (DQS 4); " + names[1] +
+                " 6 (DQS 4) (summed over the frames; --untracked-joint keeps "
+                "a part on skinning)\n");
+  EXPECT_EQ(samples::skin::formatPairPartsSummary(result, rig.skeleton, 1),
+            "isk-skin: parts whose new intersecting pairs exceed DQS's most: " +
+                names[2] +
+                " 10 (DQS 4) (summed over the frames; --untracked-joint keeps "
+                "a part on skinning)\n");
+  // No part beyond DQS's, or no frame measured: no line.
+  for (FrameQuality& q : result.quality)
+    for (PartQuality& p : q.parts) p.dqs_new_pairs = p.new_pairs;
+  EXPECT_EQ(samples::skin::formatPairPartsSummary(result, rig.skeleton), "");
+  result.quality.clear();
+  EXPECT_EQ(samples::skin::formatPairPartsSummary(result, rig.skeleton), "");
 }
 
 }  // namespace
