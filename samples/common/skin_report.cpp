@@ -35,6 +35,11 @@ constexpr const char* kMeasures =
     "difference over three frames minus DQS's, over the diagonal), "
     "lost_vertices";
 
+std::string partName(const PartQuality& p, const Skeleton& skeleton) {
+  return p.part < skeleton.jointCount() ? skeleton.joints[p.part].name
+                                        : std::to_string(p.part);
+}
+
 nlohmann::json optionalNumber(const std::optional<double>& value) {
   return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
 }
@@ -99,9 +104,7 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result,
     quality["frames"] = frames;
     nlohmann::json parts = nlohmann::json::array();
     for (const PartQuality& p : partsByExcessStrain(summary)) {
-      parts.push_back({{"joint", p.part < skeleton.jointCount()
-                                     ? skeleton.joints[p.part].name
-                                     : std::to_string(p.part)},
+      parts.push_back({{"joint", partName(p, skeleton)},
                        {"edges", p.edges},
                        {"edge_strain_mean", p.edge_strain_mean},
                        {"dqs_edge_strain_mean", p.dqs_edge_strain_mean},
@@ -266,70 +269,83 @@ std::string formatRunSummary(const Options& options,
   return out.str();
 }
 
-std::vector<PartQuality> partsByExcessStrain(const QualitySummary& summary) {
+namespace {
+
+// The summary's parts, the largest `excess` first (ties in part order).
+template <typename Excess>
+std::vector<PartQuality> partsByExcess(const QualitySummary& summary,
+                                       Excess excess) {
   std::vector<PartQuality> parts = summary.parts;
   std::stable_sort(parts.begin(), parts.end(),
-                   [](const PartQuality& a, const PartQuality& b) {
-                     return a.edge_strain_mean - a.dqs_edge_strain_mean >
-                            b.edge_strain_mean - b.dqs_edge_strain_mean;
+                   [&](const PartQuality& a, const PartQuality& b) {
+                     return excess(a) > excess(b);
                    });
   return parts;
+}
+
+// "HEADING: A ...; B ... (TAIL)\n" over the first `count` of `parts` that
+// `exceeds`, each written by `describe`; empty when none does.
+template <typename Exceeds, typename Describe>
+std::string partsLine(const std::vector<PartQuality>& parts, int count,
+                      const std::string& heading, Exceeds exceeds,
+                      Describe describe, const std::string& tail) {
+  std::ostringstream out;
+  out << std::setprecision(3) << heading << ":";
+  int shown = 0;
+  for (const PartQuality& p : parts) {
+    if (shown == count || !exceeds(p)) break;
+    out << (shown ? "; " : " ");
+    describe(out, p);
+    ++shown;
+  }
+  if (shown == 0) return "";
+  out << " (" << tail << ")\n";
+  return out.str();
+}
+
+}  // namespace
+
+std::vector<PartQuality> partsByExcessStrain(const QualitySummary& summary) {
+  return partsByExcess(summary, [](const PartQuality& p) {
+    return p.edge_strain_mean - p.dqs_edge_strain_mean;
+  });
 }
 
 std::string formatPartsSummary(const RunResult& result,
                                const Skeleton& skeleton, int count) {
   if (result.quality.empty()) return "";
-  const std::vector<PartQuality> parts =
-      partsByExcessStrain(summarizeQuality(result.quality));
-  std::ostringstream out;
-  out << std::setprecision(3)
-      << "isk-skin: parts whose edge strain exceeds DQS's most:";
-  int shown = 0;
-  for (const PartQuality& p : parts) {
-    if (shown == count || !(p.edge_strain_mean > p.dqs_edge_strain_mean)) break;
-    out << (shown ? "; " : " ")
-        << (p.part < skeleton.jointCount() ? skeleton.joints[p.part].name
-                                           : std::to_string(p.part))
-        << " strain " << p.edge_strain_mean << " (DQS "
-        << p.dqs_edge_strain_mean << "), up to " << 100 * p.dqs_distance_max
-        << "% of the diagonal from DQS";
-    ++shown;
-  }
-  if (shown == 0) return "";
-  out << " (--untracked-joint keeps a part on skinning)\n";
-  return out.str();
+  return partsLine(
+      partsByExcessStrain(summarizeQuality(result.quality)), count,
+      "isk-skin: parts whose edge strain exceeds DQS's most",
+      [](const PartQuality& p) {
+        return p.edge_strain_mean > p.dqs_edge_strain_mean;
+      },
+      [&](std::ostream& out, const PartQuality& p) {
+        out << partName(p, skeleton) << " strain " << p.edge_strain_mean
+            << " (DQS " << p.dqs_edge_strain_mean << "), up to "
+            << 100 * p.dqs_distance_max << "% of the diagonal from DQS";
+      },
+      "--untracked-joint keeps a part on skinning");
 }
 
 std::vector<PartQuality> partsByExcessPairs(const QualitySummary& summary) {
-  std::vector<PartQuality> parts = summary.parts;
-  std::stable_sort(parts.begin(), parts.end(),
-                   [](const PartQuality& a, const PartQuality& b) {
-                     return a.new_pairs - a.dqs_new_pairs >
-                            b.new_pairs - b.dqs_new_pairs;
-                   });
-  return parts;
+  return partsByExcess(summary, [](const PartQuality& p) {
+    return p.new_pairs - p.dqs_new_pairs;
+  });
 }
 
 std::string formatPairPartsSummary(const RunResult& result,
                                    const Skeleton& skeleton, int count) {
   if (result.quality.empty()) return "";
-  const std::vector<PartQuality> parts =
-      partsByExcessPairs(summarizeQuality(result.quality));
-  std::ostringstream out;
-  out << "isk-skin: parts whose new intersecting pairs exceed DQS's most:";
-  int shown = 0;
-  for (const PartQuality& p : parts) {
-    if (shown == count || !(p.new_pairs > p.dqs_new_pairs)) break;
-    out << (shown ? "; " : " ")
-        << (p.part < skeleton.jointCount() ? skeleton.joints[p.part].name
-                                           : std::to_string(p.part))
-        << " " << p.new_pairs << " (DQS " << p.dqs_new_pairs << ")";
-    ++shown;
-  }
-  if (shown == 0) return "";
-  out << " (summed over the frames; --untracked-joint keeps a part on "
-         "skinning)\n";
-  return out.str();
+  return partsLine(
+      partsByExcessPairs(summarizeQuality(result.quality)), count,
+      "isk-skin: parts whose new intersecting pairs exceed DQS's most",
+      [](const PartQuality& p) { return p.new_pairs > p.dqs_new_pairs; },
+      [&](std::ostream& out, const PartQuality& p) {
+        out << partName(p, skeleton) << " " << p.new_pairs << " (DQS "
+            << p.dqs_new_pairs << ")";
+      },
+      "summed over the frames; --untracked-joint keeps a part on skinning");
 }
 
 std::string formatIsoDriftSummary(const std::string& composition,
