@@ -114,6 +114,102 @@ TEST(Skinning, DeviceMatchesReferenceOnEverySharedAssetOverItsClip) {
   }
 }
 
+// Unskinning (isk::unskinPoints, ClSkinning::enqueueUnskinPoints) inverts
+// skinning: the skinned rest mesh goes back to the rest mesh; the device's
+// unskinning and its skinning of other points than the rest mesh
+// (enqueueSkinPoints) equal the reference's, both methods, over the clip.
+void expectUnskinningInvertsSkinning(const Rig& rig, const std::string& name,
+                                     int frames) {
+  auto context = test::sharedContext();
+  ClSkinning device(context, rig.mesh, rig.weights, rig.skeleton.jointCount());
+  const float diagonal = rig.boundingBoxDiagonal();
+  const int n = rig.mesh.vertexCount();
+  const size_t bytes = 3 * sizeof(float) * static_cast<size_t>(n);
+  cl::Buffer posed(context->context(), CL_MEM_READ_WRITE, bytes);
+  cl::Buffer out(context->context(), CL_MEM_READ_WRITE, bytes);
+  // Points off the rest mesh: each vertex moved along its normal.
+  const Matrix3Xf points =
+      rig.mesh.positions + 0.01f * diagonal * rig.mesh.normals;
+  for (SkinningMethod method : kMethods) {
+    for (const TransformList& pose : clipPoses(rig, frames)) {
+      const Frame skinned = skinOnCpu(rig, method, pose, false);
+      Matrix3Xf rest;
+      unskinPoints(method, rig.weights, pose, skinned.positions, rest);
+      const auto back = test::largestRowDistance(rest, rig.mesh.positions);
+      ASSERT_LE(back.distance, 1e-5f * diagonal)
+          << name << " " << skinningMethodName(method) << ": vertex "
+          << back.row << " (" << rig.mesh.describeVertex(back.row) << ")";
+
+      device.run(method, pose, false);
+      context->queue().enqueueWriteBuffer(posed, CL_TRUE, 0, bytes,
+                                          skinned.positions.data());
+      device.enqueueUnskinPoints(posed, out);
+      Matrix3Xf device_rest(n, 3);
+      context->queue().enqueueReadBuffer(out, CL_TRUE, 0, bytes,
+                                         device_rest.data());
+      const auto unskin = test::largestRowDistance(device_rest, rest);
+      ASSERT_LE(unskin.distance, positionTolerance(*context) * diagonal)
+          << name << " " << skinningMethodName(method) << " unskinning: vertex "
+          << unskin.row;
+
+      Matrix3Xf expected, unused;
+      const SkinningJob job{method,       &points, &rig.mesh.normals,
+                            &rig.weights, &pose,   &expected,
+                            &unused};
+      job.run();
+      context->queue().enqueueWriteBuffer(posed, CL_TRUE, 0, bytes,
+                                          points.data());
+      device.enqueueSkinPoints(posed, out);
+      Matrix3Xf device_points(n, 3);
+      context->queue().enqueueReadBuffer(out, CL_TRUE, 0, bytes,
+                                         device_points.data());
+      const auto skin = test::largestRowDistance(device_points, expected);
+      ASSERT_LE(skin.distance, positionTolerance(*context) * diagonal)
+          << name << " " << skinningMethodName(method)
+          << " skinning of points: vertex " << skin.row;
+    }
+  }
+}
+
+TEST(Skinning, UnskinningInvertsSkinningOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    expectUnskinningInvertsSkinning(makeBuiltinRig(name), "builtin:" + name, 6);
+  }
+}
+
+TEST(Skinning, UnskinningInvertsSkinningOnEverySharedAsset) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("the asset unskinnings");
+  for (const std::string& file : test::assetNames()) {
+    SCOPED_TRACE(file);
+    expectUnskinningInvertsSkinning(test::loadAsset(file), file, 6);
+  }
+}
+
+TEST(Skinning, UnskinningNeedsAFrameAndWholeBuffers) {
+  const Rig rig = makeBuiltinRig("arm");
+  auto context = test::sharedContext();
+  ClSkinning device(context, rig.mesh, rig.weights, rig.skeleton.jointCount());
+  const size_t bytes = 3 * sizeof(float) * rig.mesh.vertexCount();
+  cl::Buffer whole(context->context(), CL_MEM_READ_WRITE, bytes);
+  cl::Buffer short_buffer(context->context(), CL_MEM_READ_WRITE, bytes / 2);
+  EXPECT_THROW(device.enqueueUnskinPoints(whole, whole), Error);
+  device.run(SkinningMethod::kDualQuaternion, bindPoseSkinning(rig.skeleton));
+  try {
+    device.enqueueSkinPoints(whole, short_buffer);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("fewer than"), std::string::npos)
+        << e.what();
+  }
+  Matrix3Xf rest;
+  EXPECT_THROW(unskinPoints(SkinningMethod::kDualQuaternion, rig.weights,
+                            TransformList(1), rig.mesh.positions, rest),
+               Error);
+}
+
 // The bind pose gives identity skinning transforms: both methods, both paths
 // give back the input exactly (up to float rounding).
 void expectBindPoseReproducesInput(const Rig& rig, const std::string& name) {

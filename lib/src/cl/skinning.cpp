@@ -20,6 +20,19 @@ cl::Buffer uploadReadOnly(const ClContext& context, const std::vector<T>& data,
                                 std::string("ClSkinning ") + what);
 }
 
+// Enqueues `kernel` over the vertices: the vertex count, then `buffers` as
+// its arguments in order.
+template <typename... Buffers>
+void launchPerVertex(const ClContext& context, int vertex_count,
+                     cl::Kernel& kernel, const Buffers&... buffers) {
+  kernel.setArg(0, static_cast<cl_uint>(vertex_count));
+  cl_uint index = 1;
+  (kernel.setArg(index++, buffers), ...);
+  context.queue().enqueueNDRangeKernel(
+      kernel, cl::NullRange,
+      cl::NDRange(roundUp(std::max(vertex_count, 1), 64)), cl::NullRange);
+}
+
 }  // namespace
 
 ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
@@ -39,6 +52,8 @@ ClSkinning::ClSkinning(std::shared_ptr<ClContext> context, const Mesh& mesh,
     cl::Program normals = context_->program("normals");
     lbs_kernel_ = cl::Kernel(skinning, "skin_lbs");
     dqs_kernel_ = cl::Kernel(skinning, "skin_dqs");
+    unskin_lbs_kernel_ = cl::Kernel(skinning, "unskin_lbs");
+    unskin_dqs_kernel_ = cl::Kernel(skinning, "unskin_dqs");
     triangle_normals_kernel_ = cl::Kernel(normals, "triangle_normals");
     normals_kernel_ = cl::Kernel(normals, "vertex_normals");
     const float* p = mesh.positions.data();
@@ -139,6 +154,7 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
   }
   // Kept in a member: the non-blocking write reads it until the queue is done.
   staging_ = packJointTransforms(method, skinning);
+  method_ = method;
   const cl::CommandQueue& queue = context_->queue();
   const bool profiling = context_->profilingEnabled();
   const cl::NDRange global(roundUp(std::max(vertex_count_, 1), 64));
@@ -210,6 +226,55 @@ void ClSkinning::enqueue(SkinningMethod method, const TransformList& skinning,
     throwClError(e, std::string("ClSkinning::run (") +
                         skinningMethodName(method) + ") on " +
                         context_->info().describe());
+  }
+}
+
+void ClSkinning::checkVertexBuffer(const cl::Buffer& buffer,
+                                   const char* what) const {
+  const size_t needed = 3 * static_cast<size_t>(vertex_count_) * sizeof(float);
+  if (buffer.getInfo<CL_MEM_SIZE>() < needed)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ClSkinning::") + what +
+                    ": a buffer holds fewer than " +
+                    std::to_string(vertex_count_) + " vertices");
+}
+
+void ClSkinning::enqueueSkinPoints(const cl::Buffer& rest_points,
+                                   const cl::Buffer& out) {
+  checkUsable("enqueueSkinPoints", true);
+  try {
+    checkVertexBuffer(rest_points, "enqueueSkinPoints");
+    checkVertexBuffer(out, "enqueueSkinPoints");
+    if (point_normals_() == nullptr)
+      point_normals_ = context_->createBuffer(
+          CL_MEM_READ_WRITE, 3 * sizeof(float) * vertex_count_, nullptr,
+          "ClSkinning point normals");
+    launchPerVertex(
+        *context_, vertex_count_,
+        method_ == SkinningMethod::kLinearBlend ? lbs_kernel_ : dqs_kernel_,
+        rest_points, rest_normals_, influence_offsets_, influence_joints_,
+        influence_weights_, joint_transforms_, out, point_normals_);
+  } catch (const cl::Error& e) {
+    throwClError(
+        e, "ClSkinning::enqueueSkinPoints on " + context_->info().describe());
+  }
+}
+
+void ClSkinning::enqueueUnskinPoints(const cl::Buffer& posed,
+                                     const cl::Buffer& out_rest) {
+  checkUsable("enqueueUnskinPoints", true);
+  try {
+    checkVertexBuffer(posed, "enqueueUnskinPoints");
+    checkVertexBuffer(out_rest, "enqueueUnskinPoints");
+    launchPerVertex(*context_, vertex_count_,
+                    method_ == SkinningMethod::kLinearBlend
+                        ? unskin_lbs_kernel_
+                        : unskin_dqs_kernel_,
+                    posed, influence_offsets_, influence_joints_,
+                    influence_weights_, joint_transforms_, out_rest);
+  } catch (const cl::Error& e) {
+    throwClError(
+        e, "ClSkinning::enqueueUnskinPoints on " + context_->info().describe());
   }
 }
 

@@ -20,17 +20,26 @@ Vec3 quatRotate(const Vec4& q, const Vec3& v) {
   return v + q.w() * t + u.cross(t);
 }
 
+// The blended 3x4 matrix of vertex v's influences (LBS), as rows.
+struct BlendedRows {
+  Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
+};
+BlendedRows blendRows(const SkinWeights& w, const std::vector<float>& packed,
+                      int v) {
+  BlendedRows b;
+  for (uint32_t i = w.offsets[v]; i < w.offsets[v + 1]; ++i) {
+    const float* m = &packed[12 * w.joints[i]];
+    b.r0 += w.weights[i] * Vec4(m[0], m[1], m[2], m[3]);
+    b.r1 += w.weights[i] * Vec4(m[4], m[5], m[6], m[7]);
+    b.r2 += w.weights[i] * Vec4(m[8], m[9], m[10], m[11]);
+  }
+  return b;
+}
+
 void skinLinearBlend(const SkinningJob& job, const std::vector<float>& packed) {
-  const SkinWeights& w = *job.weights;
   const int n = static_cast<int>(job.rest_positions->rows());
   for (int v = 0; v < n; ++v) {
-    Vec4 r0 = Vec4::Zero(), r1 = Vec4::Zero(), r2 = Vec4::Zero();
-    for (uint32_t i = w.offsets[v]; i < w.offsets[v + 1]; ++i) {
-      const float* m = &packed[12 * w.joints[i]];
-      r0 += w.weights[i] * Vec4(m[0], m[1], m[2], m[3]);
-      r1 += w.weights[i] * Vec4(m[4], m[5], m[6], m[7]);
-      r2 += w.weights[i] * Vec4(m[8], m[9], m[10], m[11]);
-    }
+    const auto [r0, r1, r2] = blendRows(*job.weights, packed, v);
     const Vec4 p(job.rest_positions->coeff(v, 0),
                  job.rest_positions->coeff(v, 1),
                  job.rest_positions->coeff(v, 2), 1.f);
@@ -44,35 +53,45 @@ void skinLinearBlend(const SkinningJob& job, const std::vector<float>& packed) {
   }
 }
 
-void skinDualQuaternion(const SkinningJob& job,
-                        const std::vector<float>& packed) {
-  const SkinWeights& w = *job.weights;
-  const int n = static_cast<int>(job.rest_positions->rows());
+// Vertex v's blended unit dual quaternion (DQS): its rotation `real` and
+// translation `t`.
+struct BlendedRigid {
+  Vec4 real;
+  Vec3 t;
+};
+BlendedRigid blendDualQuaternion(const SkinWeights& w,
+                                 const std::vector<float>& packed, int v) {
   auto real_of = [&](uint32_t j) {
     return Vec4(Eigen::Map<const Vec4>(&packed[8 * j]));
   };
   auto dual_of = [&](uint32_t j) {
     return Vec4(Eigen::Map<const Vec4>(&packed[8 * j + 4]));
   };
+  const uint32_t begin = w.offsets[v], end = w.offsets[v + 1];
+  const Vec4 pivot = real_of(w.joints[begin]);
+  Vec4 real = Vec4::Zero(), dual = Vec4::Zero();
+  for (uint32_t i = begin; i < end; ++i) {
+    const Vec4 qr = real_of(w.joints[i]);
+    const float weight = qr.dot(pivot) < 0.f ? -w.weights[i] : w.weights[i];
+    real += weight * qr;
+    dual += weight * dual_of(w.joints[i]);
+  }
+  const float norm = std::sqrt(real.dot(real));
+  real /= norm;
+  dual /= norm;
+  const Vec3 rv = real.head<3>(), dv = dual.head<3>();
+  return {real, 2.f * (real.w() * dv - dual.w() * rv + rv.cross(dv))};
+}
+
+void skinDualQuaternion(const SkinningJob& job,
+                        const std::vector<float>& packed) {
+  const int n = static_cast<int>(job.rest_positions->rows());
   for (int v = 0; v < n; ++v) {
-    const uint32_t begin = w.offsets[v], end = w.offsets[v + 1];
-    const Vec4 pivot = real_of(w.joints[begin]);
-    Vec4 real = Vec4::Zero(), dual = Vec4::Zero();
-    for (uint32_t i = begin; i < end; ++i) {
-      const Vec4 qr = real_of(w.joints[i]);
-      const float weight = qr.dot(pivot) < 0.f ? -w.weights[i] : w.weights[i];
-      real += weight * qr;
-      dual += weight * dual_of(w.joints[i]);
-    }
-    const float norm = std::sqrt(real.dot(real));
-    real /= norm;
-    dual /= norm;
-    const Vec3 rv = real.head<3>(), dv = dual.head<3>();
-    const Vec3 t = 2.f * (real.w() * dv - dual.w() * rv + rv.cross(dv));
+    const BlendedRigid b = blendDualQuaternion(*job.weights, packed, v);
     const Vec3 p = job.rest_positions->row(v).transpose();
-    job.out_positions->row(v) = quatRotate(real, p) + t;
+    job.out_positions->row(v) = quatRotate(b.real, p) + b.t;
     job.out_normals->row(v) =
-        quatRotate(real, job.rest_normals->row(v).transpose());
+        quatRotate(b.real, job.rest_normals->row(v).transpose());
   }
 }
 
@@ -156,6 +175,37 @@ void SkinningJob::run() const {
   } else {
     skinDualQuaternion(*this, packed);
   }
+}
+
+void unskinPoints(SkinningMethod method, const SkinWeights& weights,
+                  const TransformList& skinning, const Matrix3Xf& posed,
+                  Matrix3Xf& rest) {
+  Matrix3Xf unused;
+  const SkinningJob job{method,    &posed,  &posed, &weights,
+                        &skinning, &unused, &unused};
+  job.validate().throwIfFailed("unskinPoints");
+  const std::vector<float> packed = packJointTransforms(method, skinning);
+  const int n = static_cast<int>(posed.rows());
+  Matrix3Xf out(n, 3);
+  for (int v = 0; v < n; ++v) {
+    const Vec3 x = posed.row(v).transpose();
+    if (method == SkinningMethod::kLinearBlend) {
+      // Same operation order as unskin_lbs: the inverse by the cofactors.
+      const auto [r0, r1, r2] = blendRows(weights, packed, v);
+      const Vec3 a = r0.head<3>(), b = r1.head<3>(), c = r2.head<3>();
+      const Vec3 y = x - Vec3(r0.w(), r1.w(), r2.w());
+      const Vec3 bc = b.cross(c), ca = c.cross(a), ab = a.cross(b);
+      const float det = a.dot(bc);
+      out.row(v) = std::fabs(det) > FLT_MIN && std::isfinite(det)
+                       ? Vec3((y.x() * bc + y.y() * ca + y.z() * ab) / det)
+                       : x;
+    } else {
+      const BlendedRigid b = blendDualQuaternion(weights, packed, v);
+      const Vec4 inverse(-b.real.x(), -b.real.y(), -b.real.z(), b.real.w());
+      out.row(v) = quatRotate(inverse, x - b.t);
+    }
+  }
+  rest = std::move(out);
 }
 
 }  // namespace isk

@@ -45,6 +45,16 @@ class ClSkinning {
   // Waits for the last enqueue() and fills lastTimes().
   void collectTimes();
 
+  // After enqueue(), with its method and transforms (enqueued, not waited
+  // for; #V * 3 packed floats each). skinPoints: skins `rest_points` in
+  // place of the rest mesh into `out` (no normals). unskinPoints: carries
+  // `posed` back to rest space into `out_rest` (isk::unskinPoints).
+  // History-dependent tracking keeps its vertices in rest space between
+  // frames with them. Throw isk::Error(kInvalidArgument) before the first
+  // enqueue() or for buffers smaller than #V vertices.
+  void enqueueSkinPoints(const cl::Buffer& rest_points, const cl::Buffer& out);
+  void enqueueUnskinPoints(const cl::Buffer& posed, const cl::Buffer& out_rest);
+
   // Blocking reads of the last run's results (#V by 3). Throw
   // isk::Error(kInvalidArgument) before the first run() and on a moved-from
   // object, as run() does.
@@ -74,7 +84,10 @@ class ClSkinning {
   int vertex_count_ = 0;
   int joint_count_ = 0;
   cl::Kernel lbs_kernel_, dqs_kernel_, triangle_normals_kernel_,
-      normals_kernel_;
+      normals_kernel_, unskin_lbs_kernel_, unskin_dqs_kernel_;
+  // Throws isk::Error(kInvalidArgument) naming `what` when `buffer` holds
+  // fewer than #V packed vertices.
+  void checkVertexBuffer(const cl::Buffer& buffer, const char* what) const;
   cl::Buffer rest_positions_, rest_normals_;
   cl::Buffer influence_offsets_, influence_joints_, influence_weights_;
   // The triangles (#F by 3), their cross products of the frame (#F by 3
@@ -85,6 +98,9 @@ class ClSkinning {
   cl::Buffer joint_transforms_;
   std::vector<float> staging_;  // packed joint transforms of the last run
   cl::Buffer skinned_normals_, out_positions_, out_normals_;
+  // enqueueSkinPoints' normals, written and not used (made on first use).
+  cl::Buffer point_normals_;
+  SkinningMethod method_ = SkinningMethod::kDualQuaternion;  // of enqueue()
   SkinningStageTimes times_;
   // Of enqueue(); the normals' two launches.
   cl::Event upload_event_, skin_event_, triangle_normals_event_, normals_event_;

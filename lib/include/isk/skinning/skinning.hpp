@@ -56,4 +56,18 @@ struct SkinningJob {
   void run() const;
 };
 
+// The inverse of skinning, point by point: `posed` (#V by 3, at the pose
+// `skinning`) carried back to rest space by the inverse of each vertex's
+// blended transform (DQS: the blended unit dual quaternion's; LBS: the
+// blended matrix's, the point kept as it is where that matrix is singular).
+// Skinning the result with the same method, weights and pose gives `posed`
+// back up to rounding. History-dependent tracking keeps its vertices in rest
+// space between frames with it (isk/implicit_skinner.hpp). Throws
+// isk::Error(kInvalidArgument) as SkinningJob::run does for sizes that do not
+// match or a non-finite pose. kernels/skinning.cl's unskin_lbs and
+// unskin_dqs do the same job.
+void unskinPoints(SkinningMethod method, const SkinWeights& weights,
+                  const TransformList& skinning, const Matrix3Xf& posed,
+                  Matrix3Xf& rest);
+
 }  // namespace isk
