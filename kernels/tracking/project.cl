@@ -301,7 +301,9 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
 // representative with an iso value starts marching. Both position buffers
 // get them, so that the launches that skip vertices (active vertices, see
 // track_relax) find the others the same in either; no vertex is in reach
-// of a contact or crease yet (track_beta_init).
+// of a contact or crease yet (track_beta_init). With has_start (history-
+// dependent tracking), the marching vertices that the last frame stopped
+// at a contact or in a crease start from `start` (mesh order) instead.
 __kernel void track_begin(const uint vertex_count,
                           __global const float* skinned,
                           __global float* positions,
@@ -312,28 +314,48 @@ __kernel void track_begin(const uint vertex_count,
                           __global float4* relax_frames,
                           __global const int* source,
                           __global float* positions_other,
-                          __global uchar* reach) {
+                          __global uchar* reach,
+                          __global const float* start,
+                          const int has_start, const float history_keep) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const float3 x = vload3(source[v], skinned);
+  const uchar state = iso_values[v] > 0.0f && representative[v] == (int)v
+                          ? ISK_TRACK_MARCHING
+                          : ISK_TRACK_UNTRACKED;
+  // The last frame's state: a vertex stopped at a contact or in a crease
+  // starts from `start`, keeping history_keep of its offset from skinning.
+  const uchar last = states[v];
+  const float3 s = vload3(source[v], skinned);
+  const float3 x = has_start && state == ISK_TRACK_MARCHING &&
+                           (last == ISK_TRACK_CONTACT ||
+                            last == ISK_TRACK_CREASE)
+                       ? s + history_keep * (vload3(source[v], start) - s)
+                       : s;
   vstore3(x, v, positions);
   vstore3(x, v, positions_other);
   reach[v] = ISK_REACH_NONE;
-  states[v] = iso_values[v] > 0.0f && representative[v] == (int)v
-                  ? ISK_TRACK_MARCHING
-                  : ISK_TRACK_UNTRACKED;
+  states[v] = state;
   prev_gradients[v] = (float4)(0.0f);
   relax_frames[v] = (float4)(0.0f);
 }
 
 // The dislocation guard (isk/tracking/dislocation.hpp; the CPU reference's
 // begin): the vertices the host found dislocated by the pose (device
-// indices) keep their skinned position.
+// indices) keep their skinned position (a history start put them
+// elsewhere).
 __kernel void track_untrack(const uint count, __global const int* vertices,
-                            __global uchar* states) {
+                            __global uchar* states,
+                            __global const float* skinned,
+                            __global const int* source,
+                            __global float* positions,
+                            __global float* positions_other) {
   const uint i = get_global_id(0);
   if (i >= count) return;
-  states[vertices[i]] = ISK_TRACK_UNTRACKED;
+  const int v = vertices[i];
+  states[v] = ISK_TRACK_UNTRACKED;
+  const float3 x = vload3(source[v], skinned);
+  vstore3(x, v, positions);
+  vstore3(x, v, positions_other);
 }
 
 // The paper's steps, named as in the CPU reference (surface_tracking.cpp):

@@ -433,14 +433,16 @@ void ClSurfaceTracking::buildLanes() {
 
 void ClSurfaceTracking::begin(const TransformList& skinning,
                               const cl::Buffer& skinned_positions,
-                              const cl::Buffer& skinned_normals) {
+                              const cl::Buffer& skinned_normals,
+                              const cl::Buffer* start) {
   const size_t needed = 3 * static_cast<size_t>(vertex_count_) * sizeof(float);
   try {
     if (skinned_positions.getInfo<CL_MEM_SIZE>() < needed ||
-        skinned_normals.getInfo<CL_MEM_SIZE>() < needed)
+        skinned_normals.getInfo<CL_MEM_SIZE>() < needed ||
+        (start && start->getInfo<CL_MEM_SIZE>() < needed))
       throw Error(ErrorCode::kInvalidArgument,
-                  "ClSurfaceTracking::begin: the skinned buffers hold fewer "
-                  "than " +
+                  "ClSurfaceTracking::begin: the skinned or start buffers "
+                  "hold fewer than " +
                       std::to_string(vertex_count_) + " vertices");
     fields_->setPose(skinning);  // validates the pose
     // Kept in a member: the non-blocking write reads it until it is done.
@@ -496,6 +498,9 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     begin_.setArg(8, begin_source_);
     begin_.setArg(9, positions_[1 - current_]);
     begin_.setArg(10, reach_);
+    begin_.setArg(11, start ? *start : skinned_positions);
+    begin_.setArg(12, static_cast<cl_int>(start != nullptr));
+    begin_.setArg(13, options_.history_keep);
     beta_current_ = 0;
     user_order_ = false;
     launch(begin_, kProjection);
@@ -512,6 +517,10 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
         untrack_.setArg(0, count);
         untrack_.setArg(1, dislocated_);
         untrack_.setArg(2, states_);
+        untrack_.setArg(3, skinned_positions);
+        untrack_.setArg(4, begin_source_);
+        untrack_.setArg(5, positions_[current_]);
+        untrack_.setArg(6, positions_[1 - current_]);
         launch(untrack_, kProjection, static_cast<int>(count));
       }
     }
@@ -888,8 +897,9 @@ void ClSurfaceTracking::finish() {
 
 void ClSurfaceTracking::run(const TransformList& skinning,
                             const cl::Buffer& skinned_positions,
-                            const cl::Buffer& skinned_normals) {
-  begin(skinning, skinned_positions, skinned_normals);
+                            const cl::Buffer& skinned_normals,
+                            const cl::Buffer* start) {
+  begin(skinning, skinned_positions, skinned_normals, start);
   for (int r = 0; r < options_.rounds; ++r) {
     project(options_.projection_steps);
     if (options_.relaxation) relax();

@@ -375,6 +375,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (fold_check_steps < 1 || fold_check_steps > 1000)
     return bad("fold_check_steps " + std::to_string(fold_check_steps) +
                ": expected 1..1000");
+  if (!(history_keep >= 0.f && history_keep <= 1.f))
+    return bad("history_keep " + std::to_string(history_keep) +
+               ": expected 0..1");
   const int cells = detail::tuningOf(*this).neighbourhood_cells;
   if (cells < 0 || cells > 16)
     return bad("neighbourhood_cells " + std::to_string(cells) +
@@ -1163,15 +1166,20 @@ void CpuSurfaceTracking::checkBegun(const char* stage) const {
 
 void CpuSurfaceTracking::begin(const TransformList& skinning,
                                const Matrix3Xf& skinned_positions,
-                               const Matrix3Xf& skinned_normals) {
+                               const Matrix3Xf& skinned_normals,
+                               const Matrix3Xf* start) {
   const int n = mesh_->vertexCount();
-  if (skinned_positions.rows() != n || skinned_normals.rows() != n)
-    throw Error(ErrorCode::kInvalidArgument,
-                "CpuSurfaceTracking::begin: " +
-                    std::to_string(skinned_positions.rows()) +
-                    " positions and " + std::to_string(skinned_normals.rows()) +
-                    " normals for a mesh of " + std::to_string(n) +
-                    " vertices");
+  if (skinned_positions.rows() != n || skinned_normals.rows() != n ||
+      (start && start->rows() != n))
+    throw Error(
+        ErrorCode::kInvalidArgument,
+        "CpuSurfaceTracking::begin: " +
+            std::to_string(skinned_positions.rows()) + " positions and " +
+            std::to_string(skinned_normals.rows()) + " normals" +
+            (start
+                 ? " and " + std::to_string(start->rows()) + " start positions"
+                 : std::string()) +
+            " for a mesh of " + std::to_string(n) + " vertices");
   for (const FieldGrid& g : fields_->grids)
     if (g.joint < 0 || g.joint >= static_cast<int>(skinning.size()))
       throw Error(ErrorCode::kInvalidArgument,
@@ -1179,6 +1187,9 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
                       std::to_string(g.joint) + " but " +
                       std::to_string(skinning.size()) +
                       " transforms were given");
+  // The last frame's states, for a history start (below).
+  std::vector<TrackState> last_states;
+  if (start) last_states = states_;
   skinning_ = skinning;
   partners_ = activePartners(*mesh_, skinning, options_);
   neighbourhoods_ = fieldNeighbourhoods(
@@ -1197,6 +1208,14 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
     for (const int v :
          dislocatedVertices(mesh_->dislocation_candidates, skinning))
       states_[v] = TrackState::kUntracked;
+  if (start && static_cast<int>(last_states.size()) == n)
+    for (int v = 0; v < n; ++v)
+      if (states_[v] == TrackState::kMarching &&
+          (last_states[v] == TrackState::kContact ||
+           last_states[v] == TrackState::kCrease))
+        positions_.row(v) =
+            skinned_.row(v) +
+            options_.history_keep * (start->row(v) - skinned_.row(v));
   beta_.assign(2 * static_cast<size_t>(n), 0.f);
   crease_sources_.assign(n, 0.f);
   times_ = {};
@@ -1598,8 +1617,9 @@ void CpuSurfaceTracking::finish() {
 
 void CpuSurfaceTracking::run(const TransformList& skinning,
                              const Matrix3Xf& skinned_positions,
-                             const Matrix3Xf& skinned_normals) {
-  begin(skinning, skinned_positions, skinned_normals);
+                             const Matrix3Xf& skinned_normals,
+                             const Matrix3Xf* start) {
+  begin(skinning, skinned_positions, skinned_normals, start);
   for (int r = 0; r < options_.rounds; ++r) {
     project(options_.projection_steps);
     if (options_.relaxation) relax();

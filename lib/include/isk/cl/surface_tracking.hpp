@@ -43,9 +43,12 @@ class ClSurfaceTracking {
   // first begin().
   // begin: the frame's pose (#joints) and the skinned positions and normals
   // on the device (#V * 3 packed floats each; normals are the fallback of
-  // the normals stage).
+  // the normals stage); `start`, when given, the positions the vertices at
+  // a contact or in a crease in the last frame start from (#V * 3 floats;
+  // see CpuSurfaceTracking::begin).
   void begin(const TransformList& skinning, const cl::Buffer& skinned_positions,
-             const cl::Buffer& skinned_normals);
+             const cl::Buffer& skinned_normals,
+             const cl::Buffer* start = nullptr);
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
@@ -58,7 +61,8 @@ class ClSurfaceTracking {
   // when the device fails; begin() and run() throw kInvalidArgument for a
   // pose of the wrong size.
   void run(const TransformList& skinning, const cl::Buffer& skinned_positions,
-           const cl::Buffer& skinned_normals);
+           const cl::Buffer& skinned_normals,
+           const cl::Buffer* start = nullptr);
 
   // Blocking reads of the working state and of the results.
   void readPositions(Matrix3Xf& out);  // working positions (results after

@@ -242,6 +242,11 @@ struct SurfaceTrackingOptions {
   float fold_strain_limit = 0.f;
   int fold_rings = 2;
   int fold_check_steps = 4;
+  // History-dependent tracking (a `start` given to begin): the share of its
+  // offset from the skinned position a vertex keeps when it starts from its
+  // last result, x = s + history_keep (start - s), in [0, 1]: a contact
+  // the pose no longer makes fades, and the skin comes back to rest.
+  float history_keep = 0.5f;
   // Speed-only switches of the device's tracking and of the broad phase
   // (field neighbourhoods, march order, occupied cells, value bounds,
   // neighbourhood cells, lane tests, active vertices): the same frames
@@ -509,12 +514,18 @@ class CpuSurfaceTracking {
 
   // Stage by stage (what run() chains; tests call them one at a time).
   // begin: the frame's pose (#joints skinning transforms) and the skinned
-  // positions (#V by 3) and normals (fallback of the normals stage).
-  // Throws isk::Error(kInvalidArgument) for sizes that do not match the
-  // mesh or a pose shorter than the fields' joints. The other stages throw
+  // positions (#V by 3) and normals (fallback of the normals stage). The
+  // vertices march from their skinned positions; given `start` (#V by 3;
+  // history-dependent tracking, isk/tracking/tracking_history.hpp), those
+  // that the last frame stopped at a contact or in a crease start from it
+  // instead. The skinned positions stay the reference of the stages that
+  // compare with skinning. Throws
+  // isk::Error(kInvalidArgument) for sizes that do not match the mesh or a
+  // pose shorter than the fields' joints. The other stages throw
   // isk::Error(kInvalidArgument) before the first begin().
   void begin(const TransformList& skinning, const Matrix3Xf& skinned_positions,
-             const Matrix3Xf& skinned_normals);
+             const Matrix3Xf& skinned_normals,
+             const Matrix3Xf* start = nullptr);
   void project(int steps);  // `steps` projection steps (eq. 4)
   void relax();             // one relaxation step (eq. 5, 6)
   void smooth();            // beta, its diffusion and the Laplacian steps
@@ -525,7 +536,7 @@ class CpuSurfaceTracking {
   // The whole frame: begin, rounds x (project, relax), smooth,
   // restoreVolume, limitStrain, finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
-           const Matrix3Xf& skinned_normals);
+           const Matrix3Xf& skinned_normals, const Matrix3Xf* start = nullptr);
 
   // The working state: #V by 3 positions and normals (model space, normals
   // of unit length after finish()), #V states.
