@@ -1,7 +1,9 @@
 #include "frame_pipeline.hpp"
 
+#include <algorithm>
 #include <chrono>
 
+#include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
 
 namespace isk::detail {
@@ -26,13 +28,37 @@ void DeviceFramePipeline::run(const TransformList& pose) {
   times = {};
   // Tracking is enqueued behind the skinning without a wait between them.
   skinning->enqueue(options.base_skinning, pose, /*recompute_normals=*/false);
-  tracking->run(pose, skinning->positionsBuffer(), skinning->normalsBuffer());
+  const bool from_history = history && history->next(pose);
+  if (from_history) skinning->enqueueSkinPoints(history_rest, history_start);
+  tracking->run(pose, skinning->positionsBuffer(), skinning->normalsBuffer(),
+                from_history ? &history_start : nullptr);
+  if (history) {
+    skinning->enqueueUnskinPoints(tracking->positionsBuffer(), history_rest);
+    try {
+      context->queue().finish();
+    } catch (const cl::Error& e) {
+      throwClError(e, "ImplicitSkinner: carrying the frame back to rest on " +
+                          context->info().describe());
+    }
+  }
   skinning->collectTimes();
   times.upload_ms =
       skinning->lastTimes().upload_ms + field_evaluation->lastUploadMs();
   times.skinning_ms = skinning->lastTimes().skinning_ms;
   times.tracking = tracking->lastTimes();
   has_run = true;
+}
+
+void DeviceFramePipeline::enableHistory(std::vector<int> parents) {
+  history = std::make_unique<TrackingHistory>(std::move(parents),
+                                              options.history_reset_degrees);
+  const size_t bytes =
+      3 * sizeof(float) *
+      static_cast<size_t>(std::max(skinning->vertexCount(), 1));
+  history_rest = context->createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
+                                       "ImplicitSkinner history (rest space)");
+  history_start = context->createBuffer(CL_MEM_READ_WRITE, bytes, nullptr,
+                                        "ImplicitSkinner history start");
 }
 
 void DeviceFramePipeline::readPositions(Matrix3Xf& out) {

@@ -25,6 +25,9 @@ struct DeviceFramePipeline {
   // One frame: #joints skinning transforms; returns when the device is
   // done, with `times` set.
   void run(const TransformList& skinning);
+  // History-dependent tracking from the next frame on (one character:
+  // `parents` are its joints'; isk/tracking/tracking_history.hpp).
+  void enableHistory(std::vector<int> parents);
   // Blocking reads of the last frame, timed into times.readback_ms.
   void readPositions(Matrix3Xf& out);
   void readNormals(Matrix3Xf& out);
@@ -37,6 +40,11 @@ struct DeviceFramePipeline {
   std::unique_ptr<ClSurfaceTracking> tracking;
   ImplicitStageTimes times;
   bool has_run = false;
+  // History mode (null: the 2013 mode): when a frame starts from the last,
+  // the last result carried back to rest space and the start skinned from
+  // it (#V * 3 floats each).
+  std::unique_ptr<TrackingHistory> history;
+  cl::Buffer history_rest, history_start;
 };
 
 }  // namespace isk::detail

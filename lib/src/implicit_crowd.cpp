@@ -292,6 +292,11 @@ ImplicitCrowd::ImplicitCrowd(std::shared_ptr<ClContext> context,
   }
   if (!context) invalid("ImplicitCrowd: no context");
   options.validate().throwIfFailed("ImplicitSkinnerOptions");
+  if (options.tracking_mode != TrackingMode::k2013)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("ImplicitCrowd: tracking mode ") +
+                    trackingModeName(options.tracking_mode) +
+                    " is not supported: a crowd tracks in the 2013 mode");
   for (size_t c = 0; c < characters.size(); ++c) {
     const Rig& rig = *characters[c].rig;
     rig.validate().throwIfFailed(rig.source);

@@ -22,11 +22,21 @@ std::shared_ptr<const ImplicitFields> checkedFields(
   return fields;
 }
 
+std::vector<int> jointParents(const Skeleton& skeleton) {
+  std::vector<int> parents;
+  for (const Joint& joint : skeleton.joints) parents.push_back(joint.parent);
+  return parents;
+}
+
 }  // namespace
 
 Validation ImplicitSkinnerOptions::validate() const {
   if (const Validation v = tracking.validate(); !v)
     return Validation::fail("tracking: " + v.reason());
+  if (!(history_reset_degrees >= 0.f && history_reset_degrees <= 180.f))
+    return Validation::fail("history_reset_degrees is " +
+                            std::to_string(history_reset_degrees) +
+                            ": expected 0 to 180");
   return Validation::ok();
 }
 
@@ -51,6 +61,8 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
       std::vector<ClFieldEvaluation::FieldGroup>{
           {&fields_->grids, joints, &fields_->composition, 1}},
       detail::buildSkinnerTrackingMesh(rig, *fields_), options);
+  if (options.tracking_mode == TrackingMode::kHistory)
+    pipeline_->enableHistory(jointParents(rig.skeleton));
 }
 
 ImplicitSkinner::~ImplicitSkinner() = default;
@@ -67,6 +79,10 @@ detail::DeviceFramePipeline& ImplicitSkinner::usable(const char* what,
 
 void ImplicitSkinner::run(const TransformList& skinning) {
   usable("run", false).run(skinning);
+}
+void ImplicitSkinner::resetHistory() {
+  if (TrackingHistory* history = usable("resetHistory", false).history.get())
+    history->reset();
 }
 void ImplicitSkinner::readPositions(Matrix3Xf& out) {
   usable("readPositions", true).readPositions(out);
@@ -126,6 +142,9 @@ CpuImplicitSkinner::CpuImplicitSkinner(
                                             rig.skeleton.jointCount());
   tracking_ = std::make_unique<CpuSurfaceTracking>(
       fields_->grids, &fields_->composition, *tracking_mesh_, options.tracking);
+  if (options.tracking_mode == TrackingMode::kHistory)
+    history_ = std::make_unique<TrackingHistory>(jointParents(rig.skeleton),
+                                                 options.history_reset_degrees);
 }
 
 void CpuImplicitSkinner::checkUsable(const char* what, bool needs_run) const {
@@ -138,10 +157,28 @@ void CpuImplicitSkinner::run(const TransformList& skinning) {
   times_ = {};
   skinning_->run(options_.base_skinning, skinning,
                  /*recompute_normals=*/false);
-  tracking_->run(skinning, skinning_->positions(), skinning_->normals());
+  const bool from_history = history_ && history_->next(skinning);
+  if (from_history) {
+    Matrix3Xf unused_normals;
+    const SkinningJob job{
+        options_.base_skinning, &history_rest_, &skinning_->restNormals(),
+        &skinning_->weights(),  &skinning,      &history_start_,
+        &unused_normals};
+    job.run();
+  }
+  tracking_->run(skinning, skinning_->positions(), skinning_->normals(),
+                 from_history ? &history_start_ : nullptr);
+  if (history_)
+    unskinPoints(options_.base_skinning, skinning_->weights(), skinning,
+                 tracking_->positions(), history_rest_);
   times_.skinning_ms = skinning_->lastTimes().skinning_ms;
   times_.tracking = tracking_->lastTimes();
   has_run_ = true;
+}
+
+void CpuImplicitSkinner::resetHistory() {
+  checkUsable("resetHistory", false);
+  if (history_) history_->reset();
 }
 
 int CpuImplicitSkinner::contactCount() const {

@@ -31,6 +31,7 @@
 #include "isk/rig/rig.hpp"
 #include "isk/skinning/cpu_skinning.hpp"
 #include "isk/tracking/surface_tracking.hpp"
+#include "isk/tracking/tracking_history.hpp"
 
 namespace isk {
 
@@ -50,6 +51,14 @@ struct ImplicitSkinnerOptions {
   SkinningMethod base_skinning = SkinningMethod::kDualQuaternion;
   // Grid and operator table storage on the device.
   FieldStorage storage = FieldStorage::kAuto;
+  // How each frame's march starts (isk/tracking/tracking_history.hpp): from
+  // the base skinning (the 2013 paper) or from the last frame's result
+  // moved by the skinning's motion. ImplicitCrowd takes the 2013 mode only.
+  TrackingMode tracking_mode = TrackingMode::k2013;
+  // History mode: a frame in which a joint turned by more than this
+  // (degrees, relative to its parent) since the last frame starts from
+  // skinning, as the first frame does. [0, 180].
+  float history_reset_degrees = 30.f;
 
   // Names the first bad option (the fields' own options are validated by
   // buildImplicitFields).
@@ -86,8 +95,13 @@ class ImplicitSkinner {
 
   // One frame: #joints skinning transforms (isk/rig/pose.hpp). Returns when the
   // device is done. Throws isk::Error(kInvalidArgument) for a pose of the
-  // wrong size or with non-finite transforms.
+  // wrong size or with non-finite transforms. In the history mode
+  // (options.tracking_mode) the frame starts from the last one's result.
   void run(const TransformList& skinning);
+  // History mode: the next frame starts from skinning (as the first does);
+  // call it when the animation jumps (scrubbing, a cut). No effect in the
+  // 2013 mode.
+  void resetHistory();
 
   // Blocking reads of the last frame (#V by 3, model space; unit normals).
   // Throw isk::Error(kOpenCl) naming the call when the device fails.
@@ -150,6 +164,7 @@ class CpuImplicitSkinner {
   // non-finite transforms, a moved-from skinner, or a result asked for
   // before run().
   void run(const TransformList& skinning);
+  void resetHistory();  // as ImplicitSkinner's
   // Results of the last frame: #V by 3, model space; unit normals.
   const Matrix3Xf& positions() const {
     checkUsable("positions", true);
@@ -196,6 +211,10 @@ class CpuImplicitSkinner {
   std::unique_ptr<CpuSurfaceTracking> tracking_;
   ImplicitStageTimes times_;
   bool has_run_ = false;
+  // History mode: when a frame starts from the last, and the last result
+  // carried back to rest space (#V by 3).
+  std::unique_ptr<TrackingHistory> history_;
+  Matrix3Xf history_rest_, history_start_;
 };
 
 }  // namespace isk

@@ -40,6 +40,9 @@ class CpuSkinning {
 
   // Milliseconds per stage of the last run.
   const SkinningStageTimes& lastTimes() const { return times_; }
+  // What the constructor kept: the rest normals (#V by 3) and the weights.
+  const Matrix3Xf& restNormals() const { return rest_normals_; }
+  const SkinWeights& weights() const { return weights_; }
   // #V of the mesh given to the constructor.
   int vertexCount() const { return static_cast<int>(rest_positions_.rows()); }
 
