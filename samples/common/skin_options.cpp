@@ -226,6 +226,24 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "checks for folded triangles")
           ->check(CLI::Range(1, 1000))
           ->capture_default_str(),
+      app.add_option("--tracking", options.tracking_mode,
+                     "implicit: 2013 (each frame marches from dual "
+                     "quaternion skinning, the paper) or history (from the "
+                     "last frame's result moved by the skinning's motion)")
+          ->check(CLI::IsMember({"2013", "history"}))
+          ->capture_default_str(),
+      app.add_option("--history-reset-angle", options.history_reset_degrees,
+                     "implicit, --tracking history: a frame in which a "
+                     "joint turned by more than this many degrees since the "
+                     "last starts from skinning")
+          ->check(CLI::Range(0.0, 180.0))
+          ->capture_default_str(),
+      app.add_option("--history-keep", tracking.history_keep,
+                     "implicit, --tracking history: the share of its offset "
+                     "from skinning a vertex at a contact keeps from the last "
+                     "frame, [0, 1]")
+          ->check(CLI::Range(0.0, 1.0))
+          ->capture_default_str(),
       app.add_option("--grid-precision", options.grid_precision,
                      "implicit: float, or half (grids rounded to 16-bit "
                      "floats: half the device memory, frames within a small "
@@ -527,6 +545,10 @@ ImplicitSkinnerOptions implicitOptions(const Options& options,
   implicit_options.fields = fields;
   implicit_options.tracking = options.tracking;
   implicit_options.base_skinning = SkinningMethod::kDualQuaternion;
+  implicit_options.tracking_mode = options.tracking_mode == "history"
+                                       ? TrackingMode::kHistory
+                                       : TrackingMode::k2013;
+  implicit_options.history_reset_degrees = options.history_reset_degrees;
   return implicit_options;
 }
 

@@ -61,6 +61,10 @@ struct Options {
 
   // Surface tracking (--method implicit); defaults are the paper's.
   SurfaceTrackingOptions tracking;
+  // implicit, --tracking: "2013" or "history" (TrackingMode), and
+  // --history-reset-angle.
+  std::string tracking_mode = "2013";
+  float history_reset_degrees = 30.f;
   std::string grid_precision = "float";  // implicit: "float" or "half"
   // implicit, --rigid-pieces: "auto", "rigid" or "tracked" (RigidPieces).
   std::string rigid_pieces = "auto";

@@ -142,7 +142,8 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"fold_guard", t.fold_guard},
           {"fold_strain_limit", t.fold_strain_limit},
           {"fold_rings", t.fold_rings},
-          {"fold_check_steps", t.fold_check_steps}};
+          {"fold_check_steps", t.fold_check_steps},
+          {"history_keep", t.history_keep}};
 }
 
 }  // namespace
@@ -229,6 +230,9 @@ nlohmann::json makeReport(const Options& options, const Rig& rig,
   if (implicit_fields) report["implicit"] = *implicit_fields;
   if (options.method == "implicit") {
     report["implicit"]["tracking"] = trackingSection(options.tracking);
+    report["implicit"]["tracking"]["mode"] = options.tracking_mode;
+    report["implicit"]["tracking"]["history_reset_degrees"] =
+        options.history_reset_degrees;
     report["implicit"]["rigid_pieces"] = options.rigid_pieces;
     if (device.tracking_mesh) {
       report["implicit"]["relaxation_weights"] =

@@ -348,6 +348,49 @@ TEST(IskSkinTest, TrackingOptionsAreValidatedAndChangeTheResult) {
       << warned.output;
 }
 
+// --tracking history: the report says the mode; the first frame (a start
+// from skinning) is the 2013 one file for file, a later one starts from the
+// last and differs; a jump past --history-reset-angle starts from skinning
+// again (every frame the 2013 one); a bad mode is refused by name.
+TEST(IskSkinTest, HistoryTrackingIsAnOption) {
+  ScopedTempDir plain_dir, history_dir, jump_dir;
+  const std::vector<std::string> bend = {"--clip", "bend:120"};
+  auto with = [&](std::vector<std::string> extra) {
+    extra.insert(extra.begin(), bend.begin(), bend.end());
+    return extra;
+  };
+  const nlohmann::json plain = runImplicit(with({}), plain_dir);
+  const nlohmann::json history =
+      runImplicit(with({"--tracking", "history"}), history_dir);
+  const nlohmann::json jumping = runImplicit(
+      with({"--tracking", "history", "--history-reset-angle", "5"}), jump_dir);
+  ASSERT_TRUE(plain.is_object() && history.is_object() && jumping.is_object());
+  EXPECT_EQ(plain["implicit"]["tracking"]["mode"], "2013");
+  EXPECT_EQ(history["implicit"]["tracking"]["mode"], "history");
+  EXPECT_EQ(jumping["implicit"]["tracking"]["history_reset_degrees"], 5.0);
+  const std::vector<std::string> names =
+      frameFiles(plain_dir.path() / "frames");
+  ASSERT_EQ(names.size(), 6u);
+  bool differs = false;
+  for (size_t f = 0; f < names.size(); ++f) {
+    const std::string plain_frame =
+        test::readFile((plain_dir.path() / "frames" / names[f]).string());
+    const std::string history_frame =
+        test::readFile((history_dir.path() / "frames" / names[f]).string());
+    EXPECT_EQ(test::readFile((jump_dir.path() / "frames" / names[f]).string()),
+              plain_frame)
+        << names[f];
+    if (f == 0) EXPECT_EQ(history_frame, plain_frame);
+    differs = differs || history_frame != plain_frame;
+  }
+  EXPECT_TRUE(differs) << "no history frame differs from the 2013 ones";
+  const std::vector<std::string> bad = {"builtin:cylinder", "--method",
+                                        "implicit", "--tracking", "2014"};
+  const RunOutput run = runIskSkin(bad);
+  EXPECT_NE(run.exit_code, 0) << describe(bad, run);
+  EXPECT_NE(run.output.find("--tracking"), std::string::npos) << run.output;
+}
+
 // --grid-precision half: the frames move a little from the float ones,
 // the iso drift stays as small; a bad value is refused by name.
 TEST(IskSkinTest, HalfPrecisionGridsAreAnOption) {
