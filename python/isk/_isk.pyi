@@ -17,6 +17,7 @@ Operator = Literal["union", "blend", "bulge"]
 OperatorChoice = Literal["auto", "union", "blend", "bulge"]
 Method = Literal["dqs", "lbs"]
 RigidPieces = Literal["auto", "rigid", "tracked"]
+Tracking = Literal["2013", "history"]
 # A quality dict: measures (int, float or None) and "parts", one dict per
 # bone's part (joint name, edges, strains, distance).
 QualityDict = dict[
@@ -111,10 +112,12 @@ class ImplicitSkinner:
         base_skinning: Method = "dqs",
         layers: bool = True,
         rigid_pieces: RigidPieces = "auto",
+        tracking: Tracking = "2013",
         cache_dir: Optional[str] = None,
         progress: Optional[Callable[[str, float], object]] = None,
     ) -> None: ...
     def run(self, matrices: ArrayLike) -> None: ...
+    def reset_history(self) -> None: ...
     def positions(self) -> Float32Array: ...
     def normals(self) -> Float32Array: ...
     def deform(self, matrices: ArrayLike) -> tuple[Float32Array, Float32Array]: ...

@@ -127,7 +127,8 @@ class PyImplicitSkinner {
       std::optional<bool> crease_gate, std::optional<float> volume_restore,
       std::optional<bool> dislocation_guard, const std::string& base_skinning,
       bool layers, const std::string& rigid_pieces,
-      std::optional<std::string> cache_dir, py::object progress)
+      const std::string& tracking_mode, std::optional<std::string> cache_dir,
+      py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
@@ -187,6 +188,12 @@ class PyImplicitSkinner {
     if (!parseRigidPieces(rigid_pieces, &options.fields.rigid_pieces)) {
       fail("rigid_pieces",
            "expected 'auto', 'rigid' or 'tracked', got '" + rigid_pieces + "'");
+    }
+    if (tracking_mode == "history") {
+      options.tracking_mode = TrackingMode::kHistory;
+    } else if (tracking_mode != "2013") {
+      fail("tracking",
+           "expected '2013' or 'history', got '" + tracking_mode + "'");
     }
     if (cache_dir) {
       options.fields.cache = true;
@@ -252,6 +259,15 @@ class PyImplicitSkinner {
     run(matrices);
     FloatArray p = positions();
     return py::make_tuple(p, normals());
+  }
+
+  void resetHistory() {
+    std::lock_guard<std::mutex> lock(*mutex_);
+    if (device_) {
+      device_->resetHistory();
+    } else {
+      reference_->resetHistory();
+    }
   }
 
   int contactCount() {
@@ -398,7 +414,7 @@ void registerSkinners(py::module_& m) {
                std::optional<int>, std::optional<float>, std::optional<float>,
                std::optional<int>, std::optional<bool>, std::optional<bool>,
                std::optional<bool>, std::optional<float>, std::optional<bool>,
-               const std::string&, bool, const std::string&,
+               const std::string&, bool, const std::string&, const std::string&,
                std::optional<std::string>, py::object>(),
            py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
            py::arg("operator") = "auto",
@@ -414,9 +430,12 @@ void registerSkinners(py::module_& m) {
            py::arg("volume_restore") = py::none(),
            py::arg("dislocation_guard") = py::none(),
            py::arg("base_skinning") = "dqs", py::arg("layers") = true,
-           py::arg("rigid_pieces") = "auto", py::arg("cache_dir") = py::none(),
-           py::arg("progress") = py::none())
+           py::arg("rigid_pieces") = "auto", py::arg("tracking") = "2013",
+           py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))
+      .def("reset_history", &PyImplicitSkinner::resetHistory,
+           "tracking='history': the next frame starts from skinning, as the "
+           "first does (a jump in the animation)")
       .def("positions", &PyImplicitSkinner::positions)
       .def("normals", &PyImplicitSkinner::normals)
       .def("deform", &PyImplicitSkinner::deform, py::arg("matrices"))

@@ -150,6 +150,29 @@ def test_volume_restore_option_reaches_the_tracking():
         isk.ImplicitSkinner(rig, device="reference", volume_restore=3.5)
 
 
+def test_history_tracking_option_reaches_the_skinner():
+    # The leg bent to 150 degrees in 25-degree steps: the first frame is
+    # the 2013 one, a later one starts from the last; after reset_history()
+    # the frame is the 2013 one again; a bad mode is a named error.
+    rig = isk.builtin_rig("leg")
+    poses = [rig.bend_pose(d) for d in range(0, 151, 25)]
+    for device in ("reference", "opencl"):
+        plain = isk.ImplicitSkinner(rig, device=device)
+        history = isk.ImplicitSkinner(rig, device=device, tracking="history")
+        differs = False
+        for i, pose in enumerate(poses):
+            a, b = plain.deform(pose)[0], history.deform(pose)[0]
+            if i == 0:
+                assert np.array_equal(a, b), device
+            differs = differs or not np.array_equal(a, b)
+        assert differs, device
+        history.reset_history()
+        assert np.array_equal(history.deform(poses[-1])[0],
+                              plain.deform(poses[-1])[0]), device
+    with pytest.raises(isk.InvalidArgumentError, match="tracking"):
+        isk.ImplicitSkinner(rig, device="reference", tracking="2014")
+
+
 def assert_option_changes_frames(rig_name, degrees, **option):
     # Every joint of the builtin rig bent to `degrees`: the option gives
     # other frames than the defaults, on the reference and on OpenCL alike.
