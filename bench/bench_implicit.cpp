@@ -232,12 +232,13 @@ void framesInTurn(int64_t frame, const Frame& run_frame, double& true_ms,
 // give a ratio that holds. Counters: frame_ms and all_frame_ms (host wall
 // time of one frame with its read-back, means over the iterations) and
 // frame_over_all, their ratio; the stage counters are the lever's frames'.
-// 'half-grids', 'sigma-<s>', 'no-fold-guard' and 'union-operator' change the
-// result on purpose (half-precision grids; eq. 4's step size sigma instead of
-// the paper's 0.35, a speed / accuracy trade-off the paper leaves to the
-// user; the strain limit without its fold guard, what the guard costs; the
-// union at every joint instead of the default's blend at the limb joints,
-// what the blend costs): how far, the
+// 'half-grids', 'sigma-<s>', 'no-fold-guard', 'union-operator' and
+// 'history-tracking' change the result on purpose (half-precision grids;
+// eq. 4's step size sigma instead of the paper's 0.35, a speed / accuracy
+// trade-off the paper leaves to the user; the strain limit without its fold
+// guard, what the guard costs; the union at every joint instead of the
+// default's blend at the limb joints, what the blend costs; each frame
+// started from the last, what the history mode costs): how far, the
 // counters
 // mean_moved, max_moved (distance of a vertex from its place in the paired
 // frame, over the rest mesh's bounding-box diagonal; means over vertices and
@@ -260,6 +261,8 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever.rfind("sigma-", 0) == 0)
     options.tracking.sigma = std::stof(lever.substr(6));
   if (lever == "no-fold-guard") options.tracking.fold_guard = false;
+  if (lever == "history-tracking")
+    options.tracking_mode = TrackingMode::kHistory;
   const Rig& rig = c.rig();
   const std::shared_ptr<const ImplicitFields> fields = implicitFieldsOf(c);
   std::shared_ptr<const ImplicitFields> switched_fields = fields;
@@ -549,7 +552,8 @@ void registerImplicitBenchmarks() {
            {"all", "no-neighbourhoods", "no-neighbourhood-cells",
             "no-march-order", "no-occupied-cells", "no-value-bounds",
             "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
-            "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator"})
+            "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator",
+            "history-tracking"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

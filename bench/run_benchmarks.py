@@ -747,7 +747,8 @@ def implicit_section(results):
 LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
           "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
-          "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator")
+          "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator",
+          "history-tracking")
 
 
 def moved(run):
@@ -824,7 +825,11 @@ def levers_section(results):
               "`--operator union`) instead of the library's default, which "
               "blends at the joints of mirrored limbs "
               "(`CompositionOptions::limb_operator`), so that 'frame / all' "
-              "below 1 is what the blend costs. "
+              "below 1 is what the blend costs; and 'history-tracking': "
+              "every switch on, and each frame started from the last "
+              "frame's result (`ImplicitSkinnerOptions::tracking_mode`, "
+              "docs/algorithm.md), so that 'frame / all' above 1 is what "
+              "the history mode costs. "
               "'moved' says how far each frame lies from the "
               "paired frame of the same pose: the mean and the largest "
               "distance of a vertex, over the rest mesh's bounding-box "
