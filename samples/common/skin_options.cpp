@@ -42,6 +42,16 @@ void addRunOptions(CLI::App& app, Options& options) {
                  "frames sampled uniformly over the clip (default: 30 per "
                  "second, plus one)")
       ->check(CLI::Range(1, 10000000));
+  app.add_option("--frame-range", options.frame_range,
+                 "FIRST:LAST: write and measure only these frames (from 0, "
+                 "both included) of the clip's --frames; the files keep "
+                 "their numbers, so ranges run apart make one sequence");
+  app.add_option("--warm-up", options.warm_up,
+                 "frames skinned unwritten before --frame-range's FIRST "
+                 "(default: every frame from 0 with --tracking history, so "
+                 "that the range equals the whole run's frames; none "
+                 "otherwise, each frame depending on its pose alone)")
+      ->check(CLI::Range(0, 10000000));
   app.add_option("--method", options.method, "lbs, dqs or implicit")
       ->check(CLI::IsMember({"lbs", "dqs", "implicit"}))
       ->capture_default_str();
@@ -474,6 +484,44 @@ int frameCount(const Options& options, const AnimationClip& clip) {
                     " frames at 30 per second; pass --frames N");
   }
   return frames;
+}
+
+FrameRange frameRange(const Options& options, int frames) {
+  FrameRange range{0, frames - 1, 0};
+  if (!options.frame_range.empty()) {
+    const std::string& spec = options.frame_range;
+    const size_t colon = spec.find(':');
+    auto number = [&](const std::string& text, int* value) {
+      if (text.empty() || text.size() > 9 ||
+          text.find_first_not_of("0123456789") != std::string::npos)
+        return false;
+      *value = std::stoi(text);
+      return true;
+    };
+    if (colon == std::string::npos ||
+        !number(spec.substr(0, colon), &range.first) ||
+        !number(spec.substr(colon + 1), &range.last)) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "--frame-range '" + spec +
+                      "': expected FIRST:LAST, two frame numbers from 0 "
+                      "(e.g. 10:19)");
+    }
+    if (range.first > range.last || range.last >= frames) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "--frame-range " + spec + ": the run has " +
+                      std::to_string(frames) + " frame" +
+                      (frames == 1 ? "" : "s") + " (0 to " +
+                      std::to_string(frames - 1) +
+                      "); FIRST must be at most LAST and LAST at most " +
+                      std::to_string(frames - 1));
+    }
+  }
+  const bool history =
+      options.method == "implicit" && options.tracking_mode == "history";
+  const int warm_up =
+      options.warm_up >= 0 ? options.warm_up : (history ? range.first : 0);
+  range.warm_up_from = std::max(0, range.first - warm_up);
+  return range;
 }
 
 bool jointNameMatches(const std::string& pattern, const std::string& name) {

@@ -26,6 +26,10 @@ struct Options {
   std::string input;
   std::string clip;
   int frames = 0;  // 0: 30 per second of the clip
+  // --frame-range FIRST:LAST of those frames (empty: all) and --warm-up
+  // (-1: every frame before FIRST with --tracking history, none otherwise).
+  std::string frame_range;
+  int warm_up = -1;
   std::string method = "dqs";
   std::string device = "auto";
   std::string out_dir;
@@ -119,6 +123,19 @@ ImportOptions importOptions(const Options& options);
 // second: past kMaxDefaultFrames that is an isk::Error(kInvalidArgument)
 // asking for --frames.
 int frameCount(const Options& options, const AnimationClip& clip);
+
+// The frames of the run that are written and measured, FIRST to LAST of
+// the clip's `frames` (--frame-range), and the first frame skinned before
+// them unwritten (--warm-up): by default frame 0 in the history mode, whose
+// frames each start from the one before, so that the range is the whole
+// run's frames bit for bit; FIRST in the 2013 mode, whose frames depend on
+// their pose alone. Throws isk::Error(kInvalidArgument) naming the option.
+struct FrameRange {
+  int first = 0;
+  int last = 0;
+  int warm_up_from = 0;
+};
+FrameRange frameRange(const Options& options, int frames);
 
 // Whether `name` matches `pattern`, where '*' stands for any run of
 // characters and '?' for one (--untracked-joint).

@@ -211,6 +211,8 @@ nlohmann::json makeReport(const Options& options, const Rig& rig,
   report["joints"] = rig.skeleton.jointCount();
   report["skin_joints"] = rig.skeleton.skinJointCount();
   report["frames"] = result.frames;
+  report["first_frame"] = result.first_frame;
+  report["warm_up_frames"] = result.warm_up_frames;
   report["method"] = options.method;
   report["clip"] = clip_name;
   report["device"] = deviceSection(device.info);
@@ -248,10 +250,16 @@ std::string formatRunSummary(const Options& options,
                              const RunResult& result) {
   std::ostringstream out;
   out << std::setprecision(4) << "isk-skin: " << result.frames << " frame"
-      << (result.frames == 1 ? "" : "s") << " of clip '" << clip_name << "' ("
-      << options.method << " on " << device_name << "): median "
-      << result.frame.median << " ms/frame, p95 " << result.frame.p95
-      << " ms; volume ratio ";
+      << (result.frames == 1 ? "" : "s");
+  if (result.first_frame > 0 || result.warm_up_frames > 0) {
+    out << " (" << result.first_frame << " to "
+        << result.first_frame + result.frames - 1 << ", after "
+        << result.warm_up_frames << " warm-up frame"
+        << (result.warm_up_frames == 1 ? "" : "s") << ")";
+  }
+  out << " of clip '" << clip_name << "' (" << options.method << " on "
+      << device_name << "): median " << result.frame.median << " ms/frame, p95 "
+      << result.frame.p95 << " ms; volume ratio ";
   if (result.volume_ratio_min) {
     out << *result.volume_ratio_min << " to " << *result.volume_ratio_max;
   } else {

@@ -79,12 +79,20 @@ std::string describeFailedFrame(int frame, int frames, const std::string& why,
                                 const RunOptions& options,
                                 const std::vector<std::string>& written) {
   std::ostringstream out;
-  out << "frame " << frame << " of " << frames << " failed: " << why;
+  out << "frame " << options.first_frame + frame;
+  if (options.first_frame > 0) {
+    out << " (of the range " << options.first_frame << " to "
+        << options.first_frame + frames - 1 << ")";
+  } else {
+    out << " of " << frames;
+  }
+  out << " failed: " << why;
   if (options.out_dir.empty()) return out.str();
   if (written.empty()) {
     out << "; no frame file was written to " << options.out_dir;
   } else {
-    out << "; the run is incomplete: frames 0 to " << written.size() - 1
+    out << "; the run is incomplete: frames " << options.first_frame << " to "
+        << options.first_frame + static_cast<int>(written.size()) - 1
         << " were written to " << options.out_dir << " ("
         << fs::path(written.front()).filename().string() << " to "
         << fs::path(written.back()).filename().string() << ", "
@@ -439,6 +447,8 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
   const Skeleton& skeleton = rig.skeleton;
   RunResult result;
   result.frames = static_cast<int>(options.times.size());
+  result.first_frame = options.first_frame;
+  result.warm_up_frames = static_cast<int>(options.warm_up_times.size());
 
   Matrix3Xf positions, normals;
   auto skinFrame = [&](const TransformList& skinning) {
@@ -493,10 +503,30 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       if (active) std::cerr << "\n";
     }
   } progress_line{options.progress};
+  auto poseAt = [&](double time) {
+    return skinningTransforms(
+        skeleton, globalTransforms(skeleton, clip.sampleLocal(skeleton, time)));
+  };
+  const int warm_up_frames = result.warm_up_frames;
+  for (int i = 0; i < warm_up_frames; ++i) {
+    const int frame = options.first_frame - warm_up_frames + i;
+    try {
+      skinFrame(poseAt(options.warm_up_times[i]));
+      checkFiniteFrame(mesh, positions, normals);
+    } catch (const std::exception& e) {
+      const Error* error = dynamic_cast<const Error*>(&e);
+      throw Error(error ? error->code() : ErrorCode::kInternal,
+                  "warm-up frame " + std::to_string(frame) +
+                      " failed: " + e.what() + "; no frame file was written",
+                  error ? error->clStatus() : 0);
+    }
+    if (options.progress) {
+      std::cerr << "\r[warm-up frame " << (i + 1) << "/" << warm_up_frames
+                << "]" << std::flush;
+    }
+  }
   auto runFrame = [&](int i) {
-    const TransformList locals = clip.sampleLocal(skeleton, options.times[i]);
-    const TransformList skinning =
-        skinningTransforms(skeleton, globalTransforms(skeleton, locals));
+    const TransformList skinning = poseAt(options.times[i]);
 
     const auto start = std::chrono::steady_clock::now();
     skinFrame(skinning);
@@ -541,7 +571,8 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
     if (options.on_frame) options.on_frame(i, positions, normals);
     if (!options.out_dir.empty()) {
       const std::string path =
-          (fs::path(options.out_dir) / frameFileName(i, options.format))
+          (fs::path(options.out_dir) /
+           frameFileName(options.first_frame + i, options.format))
               .string();
       writeMesh(path, options.format, positions, &normals, mesh.triangles);
       result.files.push_back(path);

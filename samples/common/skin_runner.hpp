@@ -163,7 +163,14 @@ struct RunOptions {
   // from DQS (skinned again on the CPU reference), jitter, lost vertices.
   bool quality = false;
   std::vector<double> times;  // seconds, one per frame
-  std::string out_dir;        // empty: no frame files
+  // A frame range's warm-up: times skinned after the bind pose and before
+  // `times`, neither measured nor written (history-dependent tracking starts
+  // each frame from the one before).
+  std::vector<double> warm_up_times;
+  // The number of times[0] in the whole clip's frames: frame files are
+  // numbered from it, so that ranges run apart make one sequence.
+  int first_frame = 0;
+  std::string out_dir;  // empty: no frame files
   MeshFormat format = MeshFormat::kObj;
   bool progress = false;  // "\r[frame i/N]" on stderr
   // Called with each frame's output, e.g. to compare two devices.
@@ -180,6 +187,8 @@ struct TimeSummary {
 
 struct RunResult {
   int frames = 0;
+  int first_frame = 0;           // RunOptions::first_frame
+  int warm_up_frames = 0;        // RunOptions::warm_up_times' count
   std::vector<double> frame_ms;  // skinning + normals + readback, per frame
   TimeSummary frame;
   StageTimes stage_median;  // per stage, median over the frames
@@ -202,7 +211,8 @@ struct RunResult {
 };
 
 // Skins `rig` at every time of `options.times` with `clip`, after one
-// bind-pose run that measures rest_pose_error (and warms the device up).
+// bind-pose run that measures rest_pose_error (and warms the device up) and
+// the warm-up frames (options.warm_up_times).
 // A frame whose output holds a non-finite position or normal is an error
 // (isk::Error kInternal naming the vertex), never written. When a frame
 // fails, the isk::Error thrown keeps the failure's code and says which

@@ -261,10 +261,16 @@ void prepareTargets(const Options& options) {
 
 isk::samples::RunOptions frameLoopOptions(const Options& options,
                                           const isk::AnimationClip& clip,
-                                          int frames) {
+                                          int frames,
+                                          const skin::FrameRange& range) {
   isk::samples::RunOptions run_options;
   run_options.method = skin::skinningMethod(options);
-  run_options.times = isk::samples::frameTimes(clip, frames);
+  const std::vector<double> times = isk::samples::frameTimes(clip, frames);
+  run_options.times.assign(times.begin() + range.first,
+                           times.begin() + range.last + 1);
+  run_options.warm_up_times.assign(times.begin() + range.warm_up_from,
+                                   times.begin() + range.first);
+  run_options.first_frame = range.first;
   run_options.out_dir = options.out_dir;
   run_options.format = skin::frameFormat(options);
   run_options.progress = frames > 5;
@@ -427,12 +433,13 @@ int run(const Options& options) {
       parametersOf(options, rig, composition);
   const isk::AnimationClip clip = chooseClip(options, rig);
   const int frames = skin::frameCount(options, clip);
+  const skin::FrameRange range = skin::frameRange(options, frames);
   prepareTargets(options);
   const std::unique_ptr<FrameSkinner> skinner =
       makeSkinner(options, rig, precompute.setup_ms);
 
   isk::samples::RunOptions run_options =
-      frameLoopOptions(options, clip, frames);
+      frameLoopOptions(options, clip, frames, range);
   std::unique_ptr<IsoDriftProbe> probe;
   if (skin::needsFields(options, params)) {
     probe = addImplicitFields(options, rig, clip,

@@ -391,6 +391,68 @@ TEST(IskSkinTest, HistoryTrackingIsAnOption) {
   EXPECT_NE(run.output.find("--tracking"), std::string::npos) << run.output;
 }
 
+// --frame-range writes only FIRST to LAST, numbered as in the whole run and
+// equal to its frames bit for bit: in the 2013 mode with no warm-up (each
+// frame depends on its pose alone), in the history mode after the default
+// warm-up (every frame from 0). A range outside the run's frames or
+// misspelt is refused by name before any output is made. Without the
+// warm-up a history range starts from skinning and differs.
+TEST(IskSkinTest, FrameRangesEqualTheWholeRunsFrames) {
+  for (const std::string mode : {"2013", "history"}) {
+    SCOPED_TRACE(mode);
+    ScopedTempDir whole_dir, range_dir;
+    const std::vector<std::string> bend = {"--clip", "bend:120", "--tracking",
+                                           mode};
+    std::vector<std::string> ranged = bend;
+    ranged.insert(ranged.end(), {"--frame-range", "3:4"});
+    const nlohmann::json whole = runImplicit(bend, whole_dir);
+    const nlohmann::json range = runImplicit(ranged, range_dir);
+    ASSERT_TRUE(whole.is_object() && range.is_object());
+    EXPECT_EQ(whole["frames"], 6);
+    EXPECT_EQ(range["frames"], 2);
+    EXPECT_EQ(range["first_frame"], 3);
+    EXPECT_EQ(range["warm_up_frames"], mode == "history" ? 3 : 0);
+    const std::vector<std::string> names =
+        frameFiles(range_dir.path() / "frames");
+    ASSERT_EQ(names,
+              (std::vector<std::string>{"frame_0003.obj", "frame_0004.obj"}));
+    for (const std::string& name : names) {
+      EXPECT_EQ(test::readFile((range_dir.path() / "frames" / name).string()),
+                test::readFile((whole_dir.path() / "frames" / name).string()))
+          << name;
+    }
+    if (mode == "history") {
+      // Without its warm-up the range's first frame starts from skinning.
+      ScopedTempDir cold_dir;
+      ranged.insert(ranged.end(), {"--warm-up", "0"});
+      const nlohmann::json cold = runImplicit(ranged, cold_dir);
+      ASSERT_TRUE(cold.is_object());
+      EXPECT_EQ(cold["warm_up_frames"], 0);
+      EXPECT_NE(
+          test::readFile((cold_dir.path() / "frames" / names[0]).string()),
+          test::readFile((whole_dir.path() / "frames" / names[0]).string()));
+    }
+  }
+  ScopedTempDir dir;
+  for (const std::string spec : {"4:9", "3:2", "3", "a:4", "-1:2"}) {
+    const std::vector<std::string> bad = {"builtin:cylinder",
+                                          "--frames",
+                                          "6",
+                                          "--frame-range",
+                                          spec,
+                                          "--out",
+                                          (dir.path() / "frames").string()};
+    const RunOutput run = runIskSkin(bad);
+    EXPECT_NE(run.exit_code, 0) << describe(bad, run);
+    EXPECT_NE(run.output.find("--frame-range"), std::string::npos)
+        << run.output;
+    EXPECT_FALSE(fs::exists(dir.path() / "frames")) << spec;
+  }
+  const RunOutput run =
+      runIskSkin({"builtin:cylinder", "--frames", "6", "--frame-range", "4:9"});
+  EXPECT_NE(run.output.find("0 to 5"), std::string::npos) << run.output;
+}
+
 // --grid-precision half: the frames move a little from the float ones,
 // the iso drift stays as small; a bad value is refused by name.
 TEST(IskSkinTest, HalfPrecisionGridsAreAnOption) {
