@@ -1,10 +1,13 @@
 // Surface tracking, volume restoration (our addition, docs/algorithm.md):
 // after the smoothing, each closed component of the welded mesh that lost
 // volume moves the vertices tracking moved inward from their skinned
-// position back out along the skinned normal, by one fraction per component.
+// position back out along the skinned normal, by one fraction per component;
+// what they cannot give back, the contact bulge pushes out over a band
+// around the contacts.
 // OpenCL C 1.2. CPU reference: CpuSurfaceTracking::restoreVolume and
 // volumeRestoreWeight / volumeRestoreFraction / volumeRestoreLimit /
-// volumeRestoreDistance / volumeRestoreBackFactor / volumeRestoreStep
+// volumeRestoreDistance / volumeRestoreBackFactor / volumeRestoreStep /
+// contactBandStep / contactBulgeWeight / contactBulgeFraction
 // (lib/src/tracking/surface_tracking.cpp); the groups are
 // TrackingMesh::VolumeGroups.
 //
@@ -41,11 +44,43 @@ __kernel void track_volume_chunks(const uint chunk_count,
   chunk_volumes[k] = sum;
 }
 
+// The contact bulge's band: 1 on the contact vertices, 0 elsewhere.
+__kernel void track_bulge_band_init(const uint vertex_count,
+                                    __global const uchar* states,
+                                    __global float* band) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  band[v] = states[v] == ISK_TRACK_CONTACT ? 1.0f : 0.0f;
+}
+
+// One ring more of the band (contactBandStep): the largest of the vertex's
+// own and each neighbour's less the edge's rest length over the vertex's
+// reach (contact_bulge_radius of its diagonal).
+__kernel void track_bulge_band_grow(const uint vertex_count,
+                                    __global const uint* ring_offsets,
+                                    __global const int* ring_neighbours,
+                                    __global const float* ring_lengths,
+                                    __global const float* reaches,
+                                    __global const float* band,
+                                    __global float* next) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const float reach = reaches[v];
+  float b = band[v];
+  for (uint i = ring_offsets[v]; i < ring_offsets[v + 1]; ++i)
+    b = fmax(b, band[ring_neighbours[i]] - ring_lengths[i] / reach);
+  next[v] = b;
+}
+
 // Each chunk's vertices' weights (volumeRestoreWeight: the inward move from
 // the skinned position along the skinned normal times its sign (outward),
 // times 1 - gamma, of the converged vertices where beta = 0, faded by the
 // share of their ring that moves too; 0 for the others), written per
-// vertex, and their sum weighted by the vertices' rest areas.
+// vertex, and their sum weighted by the vertices' rest areas; with a band
+// (contact bulge on), the bulge weights too (contactBulgeWeight: band times
+// 1 - gamma times the mean rest length of the ring's edges, of the
+// converged vertices where beta = 0 away from other components) and their
+// weighted sum.
 __kernel void track_restore_weights(
     const uint chunk_count, __global const int4* chunks,
     __global const int* entries, __global const uchar* states,
@@ -54,11 +89,14 @@ __kernel void track_restore_weights(
     __global const int* source, __global const float* areas,
     __global const float* signs, __global const int* groups,
     __global const uint* ring_offsets, __global const int* ring_neighbours,
-    __global float* weights, __global float* chunk_weighted) {
+    __global float* weights, __global float* chunk_weighted, const int bulge,
+    __global const float* band, __global const uchar* near_other,
+    __global const float* ring_lengths, __global float* bulge_weights,
+    __global float* chunk_bulge_weighted) {
   const uint k = get_global_id(0);
   if (k >= chunk_count) return;
   const int4 chunk = chunks[k];
-  float sum = 0.0f;
+  float sum = 0.0f, bulge_sum = 0.0f;
   for (int e = chunk.y; e < chunk.z; ++e) {
     const int v = entries[e];
     const uchar state = states[v];
@@ -86,8 +124,21 @@ __kernel void track_restore_weights(
     }
     weights[v] = w;
     sum += w * areas[v];
+    if (bulge) {
+      const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
+      float u = 0.0f;
+      if (end > begin && state == ISK_TRACK_CONVERGED && !(bc.x > 0.0f) &&
+          !near_other[v] && band[v] > 0.0f) {
+        float length = 0.0f;
+        for (uint i = begin; i < end; ++i) length += ring_lengths[i];
+        u = band[v] * (1.0f - bc.y) * (length / (float)(end - begin));
+      }
+      bulge_weights[v] = u;
+      bulge_sum += u * areas[v];
+    }
   }
   chunk_weighted[k] = sum;
+  if (bulge) chunk_bulge_weighted[k] = bulge_sum;
 }
 
 // A group's volume: the sum of its triangle chunks over 6.
@@ -103,36 +154,49 @@ ISK_INLINE float group_volume(const uint g,
 
 // Each group's fraction (volumeRestoreFraction): its missing volume (rest
 // less its volume, also written to `missing`) over the sum of its vertex
-// chunks, in [0, limit].
+// chunks, in [0, limit]; with the contact bulge on, its bulge fraction
+// (contactBulgeFraction): what the inward moves cannot give back at `limit`
+// over the sum of its bulge chunks, in [0, bulge_limit] (0 when off).
 __kernel void track_restore_fractions(
     const uint group_count, __global const int* triangle_chunk_offsets,
     __global const int* vertex_chunk_offsets,
     __global const float* chunk_volumes, __global const float* chunk_weighted,
     __global const float* rest_volumes, const float limit,
-    __global float* fractions, __global float* missing_volumes) {
+    __global float* fractions, __global float* missing_volumes, const int bulge,
+    __global const float* chunk_bulge_weighted, const float bulge_limit,
+    __global float* bulge_fractions) {
   const uint g = get_global_id(0);
   if (g >= group_count) return;
-  float weighted = 0.0f;
-  for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k)
+  float weighted = 0.0f, bulge_weighted = 0.0f;
+  for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k) {
     weighted += chunk_weighted[k];
+    if (bulge) bulge_weighted += chunk_bulge_weighted[k];
+  }
   const float missing =
       rest_volumes[g] - group_volume(g, triangle_chunk_offsets, chunk_volumes);
   missing_volumes[g] = missing;
   fractions[g] = weighted > 0.0f && missing > 0.0f
                      ? fmin(missing / weighted, limit)
                      : 0.0f;
+  const float rest = missing - limit * weighted;
+  bulge_fractions[g] = bulge && rest > 0.0f && bulge_weighted > 0.0f
+                           ? fmin(rest / bulge_weighted, bulge_limit)
+                           : 0.0f;
 }
 
 // After the step, the secant step back of each group that went past its
-// rest volume (volumeRestoreCorrection): its volume now (chunk_volumes of
-// the stepped positions) less its volume before is what it gained; where
-// that exceeds what it missed, its fraction is scaled by missing / gained
-// and `back` receives the change (negative), 0 elsewhere.
+// rest volume (volumeRestoreCorrection, volumeRestoreBackFactor): its
+// volume now (chunk_volumes of the stepped positions) less its volume
+// before is what it gained; where a group that stepped (a fraction or a
+// bulge fraction above 0) gained more than it missed, its fraction is
+// scaled by missing / gained and `back` receives missing / gained - 1
+// (negative), 0 elsewhere.
 __kernel void track_restore_correct(
     const uint group_count, __global const int* triangle_chunk_offsets,
     __global const float* chunk_volumes, __global const float* rest_volumes,
     __global const float* missing_volumes, __global float* fractions,
-    __global float* previous, __global float* back) {
+    __global float* previous, __global float* back,
+    __global const float* bulge_fractions) {
   const uint g = get_global_id(0);
   if (g >= group_count) return;
   const float missing = missing_volumes[g];
@@ -144,32 +208,41 @@ __kernel void track_restore_correct(
     corrected = fraction * (missing / gained);
   previous[g] = fraction;
   fractions[g] = corrected;
-  back[g] = fraction > 0.0f ? corrected / fraction - 1.0f : 0.0f;
+  const int stepped = fraction > 0.0f || bulge_fractions[g] > 0.0f;
+  back[g] = stepped && missing > 0.0f && gained > missing
+                ? missing / gained - 1.0f
+                : 0.0f;
 }
 
 // The step (volumeRestoreStep, volumeRestoreDistance): each weighted vertex
 // moved out along its unit skinned normal (times its sign: outward) by its
 // weight times its group's fraction, capped at the vertex's limit
 // (volumeRestoreLimit: volume_restore, at most ISK_VOLUME_NEAR_LIMIT near
-// another component of the mesh), times its group's factor (1, then the
-// secant step back's, volumeRestoreBackFactor).
+// another component of the mesh), plus its bulge weight times its group's
+// bulge fraction capped at contact_bulge (bulge on), times its group's
+// factor (1, then the secant step back's, volumeRestoreBackFactor).
 __kernel void track_restore_apply(
     const uint vertex_count, __global const int* groups,
     __global const float* weights, __global const float* fractions,
     __global const float* factors, __global const uchar* near_other,
     const float volume_restore, __global const float* skinned_normals,
     __global const int* source, __global const float* signs,
-    __global float* positions) {
+    __global float* positions, const int bulge,
+    __global const float* bulge_weights, __global const float* bulge_fractions,
+    const float contact_bulge) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
   const int g = groups[v];
   if (g < 0) return;
   const float w = weights[v];
-  if (!(w > 0.0f)) return;
+  const float u = bulge ? bulge_weights[v] : 0.0f;
+  if (!(w > 0.0f || u > 0.0f)) return;
   const float limit = near_other[v]
                           ? fmin(volume_restore, ISK_VOLUME_NEAR_LIMIT)
                           : volume_restore;
-  const float distance = fmin(fractions[g], limit) * factors[g] * w;
+  const float distance =
+      fmin(fractions[g], limit) * factors[g] * w +
+      fmin(bulge_fractions[g], contact_bulge) * factors[g] * u;
   const float3 n = vload3(source[v], skinned_normals);
   const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
   vstore3(vload3(v, positions) + (signs[v] * distance / length) * n, v,

@@ -1521,15 +1521,17 @@ void checkVolumeRestoration(const Rig& rig,
   if (std::abs(rest) < 1e-6 * std::pow(rig.boundingBoxDiagonal(), 3))
     return;  // a flat mesh: no volume to keep
   EXPECT_GE(a, b - 1e-4);
-  // No component past its rest volume (linearized: a hair past it) unless
-  // it was without the restoration; the whole mesh may be, where some
-  // components grew and others are given back what they lost.
+  // No component past its rest volume (linearized by the secant: a hair
+  // past it; up to about half a percent where the contact bulge pushed
+  // a saddle out, whose volume is not convex in the step)
+  // unless it was without the restoration; the whole mesh may be, where
+  // some components grew and others are given back what they lost.
   const TrackingMesh::VolumeGroups& groups = with.trackingMesh().volume_groups;
   for (int g = 0; g < groups.groupCount(); ++g) {
     const double group_with = groupVolume(groups, g, with.positions());
     const double group_without = groupVolume(groups, g, without.positions());
     EXPECT_LE(group_with, std::max(group_without, groups.rest_volume[g]) +
-                              2e-3 * groups.rest_volume[g])
+                              1e-2 * groups.rest_volume[g])
         << "component " << g;
   }
   EXPECT_LE(pairs_with, pairs_without + pairs_without / 20 + 2);
@@ -1562,13 +1564,16 @@ TEST(SurfaceTracking, VolumeRestorationOnProceduralRigs) {
 
 // Above 1 the restoration may push the skin past its skinned position: the
 // arm bent 120 degrees keeps more volume with 2 than with 1 and with 3 than
-// with 2, no component past its rest volume, and no more new pairs.
+// with 2, no component past its rest volume, and no more new pairs (the
+// inward moves alone: without the contact bulge, which gives the rest back).
 TEST(SurfaceTracking, VolumeRestorationAboveOneKeepsMoreVolume) {
   const Rig& arm = test::rigNamed("arm");
   const TransformList pose = test::bendAt(arm, arm.skeleton.find("elbow"), 120);
-  ImplicitSkinnerOptions single, twice;
+  ImplicitSkinnerOptions single, twice, thrice;
   single.tracking.volume_restore = 1.f;
   twice.tracking.volume_restore = 2.f;
+  single.tracking.contact_bulge = twice.tracking.contact_bulge =
+      thrice.tracking.contact_bulge = 0.f;
   ASSERT_TRUE(twice.tracking.validate().isOk());
   CpuImplicitSkinner once(arm, sharedFields("arm"), single);
   CpuImplicitSkinner more(arm, sharedFields("arm"), twice);
@@ -1587,7 +1592,7 @@ TEST(SurfaceTracking, VolumeRestorationAboveOneKeepsMoreVolume) {
   EXPECT_LE(b, 1.0 + 2e-3);
   EXPECT_LE(m2.new_pairs, m1.new_pairs);
   // The default, 3 (no other component near the arm), more still.
-  CpuImplicitSkinner most(arm, sharedFields("arm"));
+  CpuImplicitSkinner most(arm, sharedFields("arm"), thrice);
   ASSERT_EQ(most.tracking().options().volume_restore, 3.f);
   most.run(pose);
   const double c = enclosedVolume(most.positions(), arm.mesh.triangles) / rest;
@@ -1631,14 +1636,19 @@ TEST(SurfaceTracking, VolumeRestorationNearAnotherComponentStopsAtTheLimit) {
   const std::vector<uint8_t>& near =
       skinner.trackingMesh().volume_groups.near_other;
   const std::vector<float>& weights = tracking.restoreWeights();
+  const std::vector<float>& bulge = tracking.bulgeWeights();
   const float tolerance = 1e-6f * rig.boundingBoxDiagonal();
   int near_weighted = 0, far_past_near_limit = 0;
   for (int v = 0; v < rig.mesh.vertexCount(); ++v) {
+    // The contact bulge leaves the vertices near the cube alone.
+    if (near[v]) EXPECT_EQ(bulge[v], 0.f) << "vertex " << v;
     if (!(weights[v] > 0.f)) continue;
     const float moved = (after.row(v) - before.row(v)).norm();
     const float limit =
         near[v] ? ISK_VOLUME_NEAR_LIMIT : options.volume_restore;
-    EXPECT_LE(moved, limit * weights[v] * 1.0001f + tolerance)
+    EXPECT_LE(moved, (limit * weights[v] + options.contact_bulge * bulge[v]) *
+                             1.0001f +
+                         tolerance)
         << "vertex " << v << (near[v] ? " (near the cube)" : "");
     near_weighted += near[v];
     far_past_near_limit +=
@@ -1699,6 +1709,101 @@ TEST(SurfaceTracking, SleevedArmFollowsTheSkinAgainstDqs) {
     sum_together += t.new_pairs;
   }
   EXPECT_LT(sum_skin_only, sum_together);
+}
+
+// The contact bulge: where the inward moves cannot give a part its volume
+// back (a deep bend pressing flesh into a contact), the band around the
+// contacts bulges. On every procedural rig bent 120 degrees (and the leg
+// 150), the covered volume (the overlap counted once) is kept within
+// max(DQS's loss, 2%) with it, as the quality targets ask, and is no
+// higher without it; no more new pairs than without it (a
+// twentieth more at most) nor than DQS; a band that is 1 on the contacts
+// and falls off with the distance; nothing moved on the bind pose.
+TEST(SurfaceTracking, ContactBulgeKeepsTheVolumeOfDeepBends) {
+  struct Case {
+    std::string rig;
+    const char* joint;  // nullptr: every joint (bendAt's joint 1 chain)
+    double degrees;
+  };
+  const std::vector<Case> cases = {{"cylinder", nullptr, 120},
+                                   {"finger", nullptr, 120},
+                                   {"arm", "elbow", 120},
+                                   {"leg", "knee", 120},
+                                   {"leg", "knee", 150}};
+  int acted = 0;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.rig + " " + std::to_string(c.degrees) + " degrees");
+    const Rig& rig = test::rigNamed(c.rig);
+    const TransformList pose =
+        c.joint ? bendAt(rig, rig.skeleton.find(c.joint), c.degrees)
+                : test::bendAt(rig, 1, c.degrees);
+    ImplicitSkinnerOptions off;
+    off.tracking.contact_bulge = 0.f;
+    CpuImplicitSkinner with(rig, sharedFields(c.rig));
+    CpuImplicitSkinner without(rig, sharedFields(c.rig), off);
+    ASSERT_GT(with.tracking().options().contact_bulge, 0.f);
+    with.run(pose);
+    without.run(pose);
+    const Matrix3Xf dqs_frame =
+        geometric(rig, SkinningMethod::kDualQuaternion, pose);
+    const double rest = coveredVolume(rig.mesh.positions, rig.mesh.triangles);
+    const double dqs = coveredVolume(dqs_frame, rig.mesh.triangles) / rest;
+    const double a = coveredVolume(with.positions(), rig.mesh.triangles) / rest;
+    const double b =
+        coveredVolume(without.positions(), rig.mesh.triangles) / rest;
+    const FrameMeasures d = measureFrame(rig.mesh, dqs_frame);
+    const FrameMeasures m = measureFrame(rig.mesh, with.positions());
+    const FrameMeasures n = measureFrame(rig.mesh, without.positions());
+    float largest = 0.f;
+    for (const float kappa : with.tracking().bulgeFractions())
+      largest = std::max(largest, kappa);
+    std::printf(
+        "[ contact bulge, %s %.0f deg ] covered volume / rest %.4f (without "
+        "%.4f, DQS %.4f); new pairs %d (without %d, DQS %d); largest "
+        "fraction %.3f\n",
+        c.rig.c_str(), c.degrees, a, b, dqs, m.new_pairs, n.new_pairs,
+        d.new_pairs, largest);
+    EXPECT_LE(std::abs(a - 1), std::max(std::abs(dqs - 1), 0.02) + 1e-4);
+    if (largest > 0.f) ++acted;
+    EXPECT_GE(a, b - 1e-3);
+    EXPECT_LE(m.new_pairs, n.new_pairs + n.new_pairs / 20);
+    EXPECT_LE(m.new_pairs, d.new_pairs);
+    // The band: 1 on the contacts, in [0, 1], and below 1 elsewhere.
+    const CpuSurfaceTracking& tracking = with.tracking();
+    for (int v = 0; v < rig.mesh.vertexCount(); ++v) {
+      const float band = tracking.bulgeBand()[v];
+      EXPECT_GE(band,
+                tracking.states()[v] == TrackState::kContact ? 1.f : -1e9f)
+          << "vertex " << v;
+      EXPECT_LE(band, 1.f) << "vertex " << v;
+      if (tracking.bulgeWeights()[v] > 0.f)
+        EXPECT_EQ(tracking.states()[v], TrackState::kConverged)
+            << "vertex " << v;
+    }
+  }
+  EXPECT_GE(acted, 4) << "the bulge acted on too few deep bends";
+  // The bind pose: nothing to give back, nothing moved.
+  const Rig& leg = test::rigNamed("leg");
+  CpuImplicitSkinner rest_skinner(leg, sharedFields("leg"));
+  rest_skinner.run(bindPoseSkinning(leg.skeleton));
+  for (const float kappa : rest_skinner.tracking().bulgeFractions())
+    EXPECT_EQ(kappa, 0.f);
+  EXPECT_LE(
+      test::largestRowDistance(rest_skinner.positions(), leg.mesh.positions)
+          .distance,
+      1e-5f * leg.boundingBoxDiagonal());
+  // Bad settings are refused by name.
+  SurfaceTrackingOptions bad;
+  bad.contact_bulge = -1.f;
+  EXPECT_NE(bad.validate().reason().find("contact_bulge"), std::string::npos);
+  bad = {};
+  bad.contact_bulge_radius = 0.f;
+  EXPECT_NE(bad.validate().reason().find("contact_bulge_radius"),
+            std::string::npos);
+  bad = {};
+  bad.contact_bulge_steps = -2;
+  EXPECT_NE(bad.validate().reason().find("contact_bulge_steps"),
+            std::string::npos);
 }
 
 TEST(SurfaceTracking, LegBentTo150DegreesAgainstDqs) {
@@ -2369,6 +2474,27 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     EXPECT_NEAR(fractions[g], cpu.volumeFractions()[g],
                 chained ? 1.f : 1e-3f + 1e-2f * cpu.volumeFractions()[g])
         << "volume group " << g;
+  // The contact bulge: the band and the weights from the same states, the
+  // fractions from sums in another order.
+  std::vector<float> bulge_fractions, band, bulge_weights;
+  cl.readBulgeFractions(bulge_fractions);
+  cl.readBulgeBand(band);
+  cl.readBulgeWeights(bulge_weights);
+  ASSERT_EQ(bulge_fractions.size(), cpu.bulgeFractions().size());
+  ASSERT_EQ(band.size(), cpu.bulgeBand().size());
+  ASSERT_EQ(bulge_weights.size(), cpu.bulgeWeights().size());
+  if (!chained) {
+    for (size_t g = 0; g < bulge_fractions.size(); ++g)
+      EXPECT_NEAR(bulge_fractions[g], cpu.bulgeFractions()[g],
+                  1e-3f + 1e-2f * cpu.bulgeFractions()[g])
+          << "bulge, volume group " << g;
+    for (size_t v = 0; v < band.size(); ++v) {
+      ASSERT_NEAR(band[v], cpu.bulgeBand()[v], 1e-5f) << "band, vertex " << v;
+      ASSERT_NEAR(bulge_weights[v], cpu.bulgeWeights()[v],
+                  1e-5f * (1.f + cpu.bulgeWeights()[v]))
+          << "bulge weight, vertex " << v;
+    }
+  }
   if (!chained)
     detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
                                          cpu.previousGradients());

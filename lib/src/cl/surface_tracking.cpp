@@ -111,6 +111,8 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   restore_fractions_ = cl::Kernel(restore, "track_restore_fractions");
   restore_apply_ = cl::Kernel(restore, "track_restore_apply");
   restore_correct_ = cl::Kernel(restore, "track_restore_correct");
+  bulge_band_init_ = cl::Kernel(restore, "track_bulge_band_init");
+  bulge_band_grow_ = cl::Kernel(restore, "track_bulge_band_grow");
 }
 
 void ClSurfaceTracking::uploadLayout(
@@ -164,6 +166,7 @@ void ClSurfaceTracking::uploadLayout(
   volume_areas_ = uploadReadOnly(*context_, layout.volume_areas, &bytes_);
   volume_signs_ = uploadReadOnly(*context_, layout.volume_signs, &bytes_);
   volume_near_ = uploadReadOnly(*context_, layout.volume_near, &bytes_);
+  bulge_reaches_ = uploadReadOnly(*context_, layout.bulge_reaches, &bytes_);
 }
 
 void ClSurfaceTracking::allocateBroadPhase(const TrackingMesh& mesh) {
@@ -238,6 +241,24 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   restore_weights_buffer_ = rw(n * sizeof(float));
   context_->queue().enqueueFillBuffer(restore_weights_buffer_, 0.0f, 0,
                                       n * sizeof(float));
+  for (auto& b : bulge_band_) {
+    b = rw(n * sizeof(float));
+    context_->queue().enqueueFillBuffer(b, 0.0f, 0, n * sizeof(float));
+  }
+  bulge_weights_buffer_ = rw(n * sizeof(float));
+  context_->queue().enqueueFillBuffer(bulge_weights_buffer_, 0.0f, 0,
+                                      n * sizeof(float));
+  bulge_chunk_sums_ =
+      rw(std::max<size_t>(volume_vertex_chunks_count_, 1) * sizeof(float));
+  bulge_fractions_ =
+      rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  context_->queue().enqueueFillBuffer(
+      bulge_fractions_, 0.0f, 0,
+      std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  bytes_ += 3 * n * sizeof(float) +
+            (static_cast<size_t>(volume_vertex_chunks_count_) +
+             volume_group_count_ + 2) *
+                sizeof(float);
   volume_chunk_sums_[0] =
       rw(std::max<size_t>(volume_triangle_chunks_count_, 1) * sizeof(float));
   volume_chunk_sums_[1] =
@@ -677,11 +698,16 @@ void ClSurfaceTracking::smooth() {
 
 void ClSurfaceTracking::restoreVolume() {
   checkBegun("restoreVolume");
+  const bool bulge =
+      options_.contact_bulge > 0.f && options_.contact_bulge_steps > 0;
   if (!(options_.volume_restore > 0.f) || volume_group_count_ == 0) {
     // The fractions read back as CpuSurfaceTracking's: 0.
     try {
       context_->queue().enqueueFillBuffer(
           volume_fractions_, 0.0f, 0,
+          std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+      context_->queue().enqueueFillBuffer(
+          bulge_fractions_, 0.0f, 0,
           std::max<size_t>(volume_group_count_, 1) * sizeof(float));
     } catch (const cl::Error& e) {
       throwClError(e, "ClSurfaceTracking::restoreVolume on " +
@@ -699,6 +725,25 @@ void ClSurfaceTracking::restoreVolume() {
     volume_chunks_.setArg(4, positions);
     volume_chunks_.setArg(5, volume_chunk_sums_[0]);
     launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
+    if (bulge) {
+      const cl_uint n = static_cast<cl_uint>(vertex_count_);
+      bulge_band_init_.setArg(0, n);
+      bulge_band_init_.setArg(1, states_);
+      bulge_band_init_.setArg(2, bulge_band_[0]);
+      launch(bulge_band_init_, kVolume);
+      bulge_current_ = 0;
+      bulge_band_grow_.setArg(0, n);
+      bulge_band_grow_.setArg(1, ring_offsets_);
+      bulge_band_grow_.setArg(2, ring_neighbours_);
+      bulge_band_grow_.setArg(3, ring_lengths_);
+      bulge_band_grow_.setArg(4, bulge_reaches_);
+      for (int k = 0; k < options_.contact_bulge_steps; ++k) {
+        bulge_band_grow_.setArg(5, bulge_band_[bulge_current_]);
+        bulge_band_grow_.setArg(6, bulge_band_[1 - bulge_current_]);
+        launch(bulge_band_grow_, kVolume);
+        bulge_current_ = 1 - bulge_current_;
+      }
+    }
     restore_weights_.setArg(0,
                             static_cast<cl_uint>(volume_vertex_chunks_count_));
     restore_weights_.setArg(1, volume_vertex_chunks_);
@@ -716,6 +761,12 @@ void ClSurfaceTracking::restoreVolume() {
     restore_weights_.setArg(13, ring_neighbours_);
     restore_weights_.setArg(14, restore_weights_buffer_);
     restore_weights_.setArg(15, volume_chunk_sums_[1]);
+    restore_weights_.setArg(16, static_cast<cl_int>(bulge));
+    restore_weights_.setArg(17, bulge_band_[bulge_current_]);
+    restore_weights_.setArg(18, volume_near_);
+    restore_weights_.setArg(19, ring_lengths_);
+    restore_weights_.setArg(20, bulge_weights_buffer_);
+    restore_weights_.setArg(21, bulge_chunk_sums_);
     launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
     restore_fractions_.setArg(0, static_cast<cl_uint>(volume_group_count_));
     restore_fractions_.setArg(1, volume_triangle_chunk_offsets_);
@@ -726,6 +777,10 @@ void ClSurfaceTracking::restoreVolume() {
     restore_fractions_.setArg(6, options_.volume_restore);
     restore_fractions_.setArg(7, volume_fractions_);
     restore_fractions_.setArg(8, volume_missing_);
+    restore_fractions_.setArg(9, static_cast<cl_int>(bulge));
+    restore_fractions_.setArg(10, bulge_chunk_sums_);
+    restore_fractions_.setArg(11, options_.contact_bulge);
+    restore_fractions_.setArg(12, bulge_fractions_);
     launch(restore_fractions_, kVolume, volume_group_count_);
     restore_apply_.setArg(0, static_cast<cl_uint>(vertex_count_));
     restore_apply_.setArg(1, volume_groups_);
@@ -738,6 +793,10 @@ void ClSurfaceTracking::restoreVolume() {
     restore_apply_.setArg(8, begin_source_);
     restore_apply_.setArg(9, volume_signs_);
     restore_apply_.setArg(10, positions);
+    restore_apply_.setArg(11, static_cast<cl_int>(bulge));
+    restore_apply_.setArg(12, bulge_weights_buffer_);
+    restore_apply_.setArg(13, bulge_fractions_);
+    restore_apply_.setArg(14, options_.contact_bulge);
     launch(restore_apply_, kVolume);
     // The secant step back where a group went past its rest volume.
     launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
@@ -749,6 +808,7 @@ void ClSurfaceTracking::restoreVolume() {
     restore_correct_.setArg(5, volume_fractions_);
     restore_correct_.setArg(6, volume_previous_);
     restore_correct_.setArg(7, volume_back_);
+    restore_correct_.setArg(8, bulge_fractions_);
     launch(restore_correct_, kVolume, volume_group_count_);
     restore_apply_.setArg(3, volume_previous_);
     restore_apply_.setArg(4, volume_back_);
@@ -769,10 +829,34 @@ void ClSurfaceTracking::readVolumeFractions(std::vector<float>& out) {
 
 void ClSurfaceTracking::readRestoreWeights(std::vector<float>& out) {
   checkBegun("readRestoreWeights");
+  readByVertex(restore_weights_buffer_, out, "readRestoreWeights");
+}
+
+void ClSurfaceTracking::readBulgeFractions(std::vector<float>& out) {
+  checkBegun("readBulgeFractions");
+  out.resize(volume_group_count_);
+  if (volume_group_count_ > 0)
+    readFloats(bulge_fractions_, out.data(), out.size() * sizeof(float),
+               "readBulgeFractions");
+}
+
+void ClSurfaceTracking::readBulgeBand(std::vector<float>& out) {
+  checkBegun("readBulgeBand");
+  readByVertex(bulge_band_[bulge_current_], out, "readBulgeBand");
+}
+
+void ClSurfaceTracking::readBulgeWeights(std::vector<float>& out) {
+  checkBegun("readBulgeWeights");
+  readByVertex(bulge_weights_buffer_, out, "readBulgeWeights");
+}
+
+void ClSurfaceTracking::readByVertex(const cl::Buffer& buffer,
+                                     std::vector<float>& out,
+                                     const char* what) {
   std::vector<float> by_device(vertex_count_);
   if (vertex_count_ > 0)
-    readFloats(restore_weights_buffer_, by_device.data(),
-               by_device.size() * sizeof(float), "readRestoreWeights");
+    readFloats(buffer, by_device.data(), by_device.size() * sizeof(float),
+               what);
   out.assign(vertex_count_, 0.f);
   for (int k = 0; k < vertex_count_; ++k) out[order_[k]] = by_device[k];
 }

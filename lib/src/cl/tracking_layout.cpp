@@ -60,7 +60,9 @@ void perVertexData(const TrackingMesh& mesh,
   const TrackingLengths lengths = trackingLengths(mesh, options);
   out->step_limits.resize(2 * static_cast<size_t>(n));
   out->smoothing_radii.resize(n);
+  out->bulge_reaches.resize(n);
   for (int k = 0; k < n; ++k) {
+    out->bulge_reaches[k] = lengths.bulge_reach[order[k]];
     out->step_limits[2 * k] = lengths.max_step[order[k]];
     out->step_limits[2 * k + 1] = lengths.min_gradient[order[k]];
     out->smoothing_radii[k] = lengths.smoothing_radius[order[k]];

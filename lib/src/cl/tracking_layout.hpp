@@ -31,6 +31,7 @@ struct TrackingDeviceLayout {
   std::vector<uint8_t> rules, kinds;  // RelaxationRule, RingKind
   std::vector<float> step_limits;     // 2 per vertex: max step, min gradient
   std::vector<float> smoothing_radii;
+  std::vector<float> bulge_reaches;  // trackingLengths' bulge_reach
   // The one-rings as compressed rows, #V + 1 offsets.
   std::vector<uint32_t> ring_offsets;
   std::vector<int> ring_neighbours;

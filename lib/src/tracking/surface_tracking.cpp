@@ -215,9 +215,12 @@ float volumeRestoreDistance(float fraction, float factor, float limit,
   return std::min(fraction, limit) * factor * weight;
 }
 
-// The secant step back's factor (see volumeRestoreDistance).
-float volumeRestoreBackFactor(float fraction, float corrected) {
-  return fraction > 0.f ? corrected / fraction - 1.f : 0.f;
+// The secant step back's factor (see volumeRestoreDistance): missing /
+// gained - 1 where a group that stepped (`stepped`: a fraction or a bulge
+// fraction above 0) gained more than it missed, 0 elsewhere.
+float volumeRestoreBackFactor(bool stepped, double missing, double gained) {
+  if (!stepped || !(missing > 0.0) || !(gained > missing)) return 0.f;
+  return static_cast<float>(missing / gained) - 1.f;
 }
 
 // The step: `distance` out along the unit skinned normal (times its sign).
@@ -225,6 +228,39 @@ Eigen::Vector3f volumeRestoreStep(const Eigen::Vector3f& x,
                                   const Eigen::Vector3f& skinned_normal,
                                   float sign, float distance) {
   return x + (sign * distance) * skinned_normal.normalized();
+}
+
+// The contact bulge's band at v after one more ring: the largest of its
+// own and each neighbour's less the edge's rest length over the reach.
+// band(i), length(i): the ring's i-th neighbour's band and edge length.
+template <typename Bands, typename Lengths>
+float contactBandStep(float own, int count, Bands band, Lengths length,
+                      float reach) {
+  float b = own;
+  for (int i = 0; i < count; ++i) b = std::max(b, band(i) - length(i) / reach);
+  return b;
+}
+
+// A vertex's contact bulge weight u: its band times (1 - gamma) times the
+// mean rest length of its ring edges, for a converged vertex away from
+// contacts (beta = 0) and from other components; 0 for the others.
+float contactBulgeWeight(TrackState state, float beta, float gamma,
+                         bool near_other, float band, float mean_length) {
+  if (state != TrackState::kConverged || beta > 0.f || near_other ||
+      !(band > 0.f))
+    return 0.f;
+  return band * (1.f - gamma) * mean_length;
+}
+
+// A group's contact bulge fraction kappa: what the inward moves cannot give
+// back at volume_restore times their sum, over the sum of the bulge
+// weights (sum u A), in [0, limit].
+float contactBulgeFraction(double missing, double weighted,
+                           float volume_restore, double bulge_weighted,
+                           float limit) {
+  const double rest = missing - double{volume_restore} * weighted;
+  if (!(rest > 0.0) || !(bulge_weighted > 0.0)) return 0.f;
+  return static_cast<float>(std::min(rest / bulge_weighted, double{limit}));
 }
 
 // The strain limit's Jacobi step for one vertex: its offset d from its
@@ -340,6 +376,15 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(volume_restore >= 0 && volume_restore <= 3))
     return bad("volume_restore " + std::to_string(volume_restore) +
                ": expected a fraction in [0, 3]");
+  if (!(contact_bulge >= 0 && contact_bulge <= 10))
+    return bad("contact_bulge " + std::to_string(contact_bulge) +
+               ": expected mean edge lengths in [0, 10]");
+  if (!(contact_bulge_radius > 0 && contact_bulge_radius <= 1))
+    return bad("contact_bulge_radius " + std::to_string(contact_bulge_radius) +
+               ": expected a fraction of the diagonal in (0, 1]");
+  if (contact_bulge_steps < 0 || contact_bulge_steps > 1000)
+    return bad("contact_bulge_steps " + std::to_string(contact_bulge_steps) +
+               ": expected 0 to 1000");
   if (!(contact_gap >= 0 && contact_gap < 0.5f))
     return bad("contact_gap " + std::to_string(contact_gap) +
                ": expected field units in [0, 0.5)");
@@ -786,8 +831,10 @@ TrackingLengths trackingLengths(const TrackingMesh& mesh,
   out.max_step.resize(n);
   out.min_gradient.resize(n);
   out.smoothing_radius.resize(n);
+  out.bulge_reach.resize(n);
   for (int v = 0; v < n; ++v) {
     const float diagonal = mesh.diagonalOf(v);
+    out.bulge_reach[v] = options.contact_bulge_radius * diagonal;
     out.max_step[v] = options.max_step * diagonal;
     out.min_gradient[v] =
         diagonal > 0 ? options.min_gradient / diagonal : options.min_gradient;
@@ -1636,13 +1683,17 @@ void CpuSurfaceTracking::restoreVolume() {
   const int group_count = groups.groupCount();
   const int n = mesh_->vertexCount();
   volume_fractions_.assign(group_count, 0.f);
+  bulge_fractions_.assign(group_count, 0.f);
   restore_weights_.assign(n, 0.f);
+  bulge_band_.assign(n, 0.f);
+  bulge_weights_.assign(n, 0.f);
   if (!(options_.volume_restore > 0.f) || group_count == 0 ||
       static_cast<int>(groups.vertex_group.size()) != n ||
       static_cast<int>(groups.vertex_area.size()) != n ||
       static_cast<int>(groups.normal_sign.size()) != n)
     return;
   const auto start = std::chrono::steady_clock::now();
+  const OneRings& rings = mesh_->rings;
   // Each group's volume now, about its first corner.
   auto groupVolume = [&](int g) {
     const int first = groups.triangle_offsets[g];
@@ -1658,10 +1709,32 @@ void CpuSurfaceTracking::restoreVolume() {
     }
     return volume / 6;
   };
-  std::vector<double> missing(group_count), weighted(group_count, 0.0);
+  std::vector<double> missing(group_count), weighted(group_count, 0.0),
+      bulge_weighted(group_count, 0.0);
   for (int g = 0; g < group_count; ++g)
     missing[g] = groups.rest_volume[g] - groupVolume(g);
-  // The inward moves outside contacts and creases, and their weighted sum.
+  const bool near_rows = static_cast<int>(groups.near_other.size()) == n;
+  const bool bulge =
+      options_.contact_bulge > 0.f && options_.contact_bulge_steps > 0;
+  if (bulge) {
+    // The band around the contacts, one ring per step (Jacobi).
+    for (int v = 0; v < n; ++v)
+      bulge_band_[v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
+    std::vector<float> next(n);
+    for (int k = 0; k < options_.contact_bulge_steps; ++k) {
+      for (int v = 0; v < n; ++v) {
+        const uint32_t begin = rings.offsets[v];
+        next[v] = contactBandStep(
+            bulge_band_[v], static_cast<int>(rings.offsets[v + 1] - begin),
+            [&](int i) { return bulge_band_[rings.neighbours[begin + i]]; },
+            [&](int i) { return mesh_->ring_lengths[begin + i]; },
+            lengths_.bulge_reach[v]);
+      }
+      bulge_band_.swap(next);
+    }
+  }
+  // The inward moves outside contacts and creases, the bulge weights, and
+  // their weighted sums.
   for (int v = 0; v < n; ++v) {
     const int g = groups.vertex_group[v];
     if (g < 0) continue;
@@ -1669,12 +1742,11 @@ void CpuSurfaceTracking::restoreVolume() {
         states_[v], beta_[2 * v], beta_[2 * v + 1],
         positions_.row(v).transpose(), skinned_.row(v).transpose(),
         fallback_normals_.row(v).transpose(), groups.normal_sign[v]);
+    const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
     if (restore_weights_[v] > 0.f) {
       // Faded by the share of its ring that does not move (a contact, a
       // crease, a part left alone): no shear against a border that stays.
-      const OneRings& rings = mesh_->rings;
       int moving = 0;
-      const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
       for (uint32_t i = begin; i < end; ++i) {
         const int u = rings.neighbours[i];
         moving += states_[u] == TrackState::kConverged &&
@@ -1685,24 +1757,40 @@ void CpuSurfaceTracking::restoreVolume() {
             static_cast<float>(moving) / static_cast<float>(end - begin);
     }
     weighted[g] += restore_weights_[v] * groups.vertex_area[v];
+    if (bulge && end > begin) {
+      float length = 0.f;
+      for (uint32_t i = begin; i < end; ++i) length += mesh_->ring_lengths[i];
+      bulge_weights_[v] =
+          contactBulgeWeight(states_[v], beta_[2 * v], beta_[2 * v + 1],
+                             near_rows && groups.near_other[v], bulge_band_[v],
+                             length / static_cast<float>(end - begin));
+      bulge_weighted[g] += bulge_weights_[v] * groups.vertex_area[v];
+    }
   }
-  for (int g = 0; g < group_count; ++g)
+  for (int g = 0; g < group_count; ++g) {
     volume_fractions_[g] =
         volumeRestoreFraction(missing[g], weighted[g], options_.volume_restore);
-  const bool near_rows = static_cast<int>(groups.near_other.size()) == n;
+    bulge_fractions_[g] =
+        contactBulgeFraction(missing[g], weighted[g], options_.volume_restore,
+                             bulge_weighted[g], options_.contact_bulge);
+  }
   auto step = [&](const std::vector<float>& fractions,
                   const std::vector<float>& factors) {
     for (int v = 0; v < n; ++v) {
       const int g = groups.vertex_group[v];
-      if (g < 0 || !(restore_weights_[v] > 0.f)) continue;
+      if (g < 0 || !(restore_weights_[v] > 0.f || bulge_weights_[v] > 0.f))
+        continue;
       const float limit = volumeRestoreLimit(near_rows && groups.near_other[v],
                                              options_.volume_restore);
+      const float distance =
+          volumeRestoreDistance(fractions[g], factors[g], limit,
+                                restore_weights_[v]) +
+          volumeRestoreDistance(bulge_fractions_[g], factors[g],
+                                options_.contact_bulge, bulge_weights_[v]);
       positions_.row(v) =
           volumeRestoreStep(positions_.row(v).transpose(),
                             fallback_normals_.row(v).transpose(),
-                            groups.normal_sign[v],
-                            volumeRestoreDistance(fractions[g], factors[g],
-                                                  limit, restore_weights_[v]))
+                            groups.normal_sign[v], distance)
               .transpose();
     }
   };
@@ -1714,7 +1802,8 @@ void CpuSurfaceTracking::restoreVolume() {
     const double gained = groupVolume(g) - (groups.rest_volume[g] - missing[g]);
     volume_fractions_[g] =
         volumeRestoreCorrection(missing[g], gained, first[g]);
-    back[g] = volumeRestoreBackFactor(first[g], volume_fractions_[g]);
+    back[g] = volumeRestoreBackFactor(
+        first[g] > 0.f || bulge_fractions_[g] > 0.f, missing[g], gained);
   }
   step(first, back);
   times_.volume_ms += millisecondsSince(start);

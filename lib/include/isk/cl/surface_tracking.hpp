@@ -76,6 +76,11 @@ class ClSurfaceTracking {
   // weight (#V, 0 outside the groups) as CpuSurfaceTracking's.
   void readVolumeFractions(std::vector<float>& out);
   void readRestoreWeights(std::vector<float>& out);
+  // The contact bulge's last run: kappa per group, each vertex's band and
+  // weight (#V) as CpuSurfaceTracking's (0 with the bulge off).
+  void readBulgeFractions(std::vector<float>& out);
+  void readBulgeBand(std::vector<float>& out);
+  void readBulgeWeights(std::vector<float>& out);
   // Vertices stopped at a contact in the last frame (a blocking read of the
   // states).
   int contactCount();
@@ -118,6 +123,9 @@ class ClSurfaceTracking {
   void setContactArgs(cl::Kernel& kernel, cl_uint first_index) const;
   void readFloats(const cl::Buffer& buffer, void* out, size_t bytes,
                   const char* what);
+  // A float per vertex in the device's order, read into the mesh's.
+  void readByVertex(const cl::Buffer& buffer, std::vector<float>& out,
+                    const char* what);
   // Throws isk::Error(kInvalidArgument) naming `stage` before begin().
   void checkBegun(const char* stage) const;
   bool begun_ = false;
@@ -158,7 +166,7 @@ class ClSurfaceTracking {
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
       volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
-      restore_correct_, untrack_;
+      restore_correct_, untrack_, bulge_band_init_, bulge_band_grow_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, partners_, neighbour_offsets_,
@@ -234,6 +242,12 @@ class ClSurfaceTracking {
       volume_areas_, volume_signs_, volume_near_, volume_chunk_sums_[2],
       volume_fractions_, volume_missing_, volume_previous_, volume_back_,
       volume_ones_, restore_weights_buffer_;
+  // The contact bulge: each vertex's reach (trackingLengths), its band
+  // (ping-pong, bulge_band_[bulge_current_] the last) and weight, the
+  // chunks' sums of the weights and the groups' fractions.
+  cl::Buffer bulge_reaches_, bulge_band_[2], bulge_weights_buffer_,
+      bulge_chunk_sums_, bulge_fractions_;
+  int bulge_current_ = 0;
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;
   size_t bytes_ = 0;

@@ -100,6 +100,19 @@
 // curved part) is stepped back by the secant: lambda scaled by (V_rest -
 // V) over the volume it gained. Components with holes (more than 1% of their
 // vertices on a border) and meshes that enclose no volume are left alone.
+// Contact bulge (contact_bulge, on by default; our addition, see
+// docs/algorithm.md): where a component misses more volume than its inward
+// moves can give back (V_rest - V > volume_restore sum(w A)), the flesh
+// pressed at its contacts bulges beside them. A band b around the contact
+// vertices (1 on them, falling linearly with the rest distance along the
+// mesh to 0 at contact_bulge_radius of the diagonal, grown over
+// contact_bulge_steps rings at most) weighs the converged vertices away
+// from contacts and other components: u = b (1 - gamma) e, e the mean rest
+// length of the vertex's ring edges; the rest of the missing volume goes
+// out along n by a common fraction of u:
+//   x <- x + min(lambda, L) w n + min(kappa, contact_bulge) u n,
+//   kappa = (V_rest - V - volume_restore sum(w A)) / sum(u A),
+// both stepped back together by the secant.
 //
 // Contact by home field (home_contact, on by default; our addition, see
 // docs/algorithm.md): each vertex has a home field, the field of the
@@ -208,6 +221,13 @@ struct SurfaceTrackingOptions {
   // ISK_VOLUME_NEAR_LIMIT near another component of the mesh;
   // docs/algorithm.md measures the default).
   float volume_restore = 3.f;
+  // The contact bulge (see above): the largest push of a band vertex, in
+  // its mean rest edge lengths, [0, 10] (0: off); the band's reach, a
+  // fraction of the diagonal (rest distance along the mesh), and the rings
+  // it grows over at most (each step one ring; cost grows with them).
+  float contact_bulge = 3.f;
+  float contact_bulge_radius = 0.2f;
+  int contact_bulge_steps = 16;
   // Two fields joined by a blend are not other parts for the contact by
   // home field while their joint is turned by less than this from its bind
   // pose (degrees): the blend shapes a fold that turns by less into a
@@ -370,6 +390,7 @@ struct TrackingLengths {
   std::vector<float> max_step;          // #V
   std::vector<float> min_gradient;      // #V
   std::vector<float> smoothing_radius;  // #V
+  std::vector<float> bulge_reach;       // #V: contact_bulge_radius's length
 };
 TrackingLengths trackingLengths(const TrackingMesh& mesh,
                                 const SurfaceTrackingOptions& options);
@@ -564,6 +585,11 @@ class CpuSurfaceTracking {
     return volume_fractions_;
   }
   const std::vector<float>& restoreWeights() const { return restore_weights_; }
+  // The contact bulge's last run (after restoreVolume()): kappa per group
+  // and each vertex's band b and weight u (#V).
+  const std::vector<float>& bulgeFractions() const { return bulge_fractions_; }
+  const std::vector<float>& bulgeBand() const { return bulge_band_; }
+  const std::vector<float>& bulgeWeights() const { return bulge_weights_; }
   // How many triangles the fold guard's last check found folded over (a
   // weight above 0).
   int foldedTriangleCount() const { return folded_triangles_; }
@@ -609,6 +635,7 @@ class CpuSurfaceTracking {
   void weighFolds(const Matrix3Xf& offsets);
   std::vector<FoldFrame> fold_frames_;
   std::vector<float> volume_fractions_, restore_weights_;
+  std::vector<float> bulge_fractions_, bulge_band_, bulge_weights_;
   std::vector<float> fold_weights_, fold_scratch_;
   int folded_triangles_ = 0;
   TrackingStageTimes times_;
