@@ -108,6 +108,7 @@ class ImplicitSkinner:
         skinned_ring_relaxation: Optional[bool] = None,
         crease_gate: Optional[bool] = None,
         volume_restore: Optional[float] = None,
+        contact_bulge: Optional[float] = None,
         dislocation_guard: Optional[bool] = None,
         base_skinning: Method = "dqs",
         layers: bool = True,

@@ -125,10 +125,10 @@ class PyImplicitSkinner {
       std::optional<bool> relaxation,
       std::optional<bool> skinned_ring_relaxation,
       std::optional<bool> crease_gate, std::optional<float> volume_restore,
-      std::optional<bool> dislocation_guard, const std::string& base_skinning,
-      bool layers, const std::string& rigid_pieces,
-      const std::string& tracking_mode, std::optional<std::string> cache_dir,
-      py::object progress)
+      std::optional<float> contact_bulge, std::optional<bool> dislocation_guard,
+      const std::string& base_skinning, bool layers,
+      const std::string& rigid_pieces, const std::string& tracking_mode,
+      std::optional<std::string> cache_dir, py::object progress)
       : rig_(std::move(rig)) {
     const std::optional<std::string> selection = deviceSelection(device);
     ImplicitSkinnerOptions options;
@@ -182,6 +182,7 @@ class PyImplicitSkinner {
       tracking.skinned_ring_relaxation = *skinned_ring_relaxation;
     if (crease_gate) tracking.crease_gate = *crease_gate;
     if (volume_restore) tracking.volume_restore = *volume_restore;
+    if (contact_bulge) tracking.contact_bulge = *contact_bulge;
     if (dislocation_guard) tracking.dislocation_guard = *dislocation_guard;
     options.base_skinning = parseMethod(base_skinning, "base_skinning");
     options.fields.sampling.skin_only = layers;
@@ -408,30 +409,31 @@ void registerSkinners(py::module_& m) {
                                 "Implicit skinning of one rig "
                                 "(isk::ImplicitSkinner, "
                                 "isk::CpuImplicitSkinner).")
-      .def(py::init<
-               RigPtr, const std::string&, const std::string&, py::object,
-               py::object, std::optional<double>, std::optional<double>,
-               std::optional<int>, std::optional<float>, std::optional<float>,
-               std::optional<int>, std::optional<bool>, std::optional<bool>,
-               std::optional<bool>, std::optional<float>, std::optional<bool>,
-               const std::string&, bool, const std::string&, const std::string&,
-               std::optional<std::string>, py::object>(),
-           py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
-           py::arg("operator") = "auto",
-           py::arg("joint_operators") = py::none(),
-           py::arg("untracked_joints") = py::none(),
-           py::arg("bulge_strength") = py::none(),
-           py::arg("blend_theta") = py::none(), py::arg("rounds") = py::none(),
-           py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),
-           py::arg("smoothing_steps") = py::none(),
-           py::arg("relaxation") = py::none(),
-           py::arg("skinned_ring_relaxation") = py::none(),
-           py::arg("crease_gate") = py::none(),
-           py::arg("volume_restore") = py::none(),
-           py::arg("dislocation_guard") = py::none(),
-           py::arg("base_skinning") = "dqs", py::arg("layers") = true,
-           py::arg("rigid_pieces") = "auto", py::arg("tracking") = "2013",
-           py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
+      .def(
+          py::init<
+              RigPtr, const std::string&, const std::string&, py::object,
+              py::object, std::optional<double>, std::optional<double>,
+              std::optional<int>, std::optional<float>, std::optional<float>,
+              std::optional<int>, std::optional<bool>, std::optional<bool>,
+              std::optional<bool>, std::optional<float>, std::optional<float>,
+              std::optional<bool>, const std::string&, bool, const std::string&,
+              const std::string&, std::optional<std::string>, py::object>(),
+          py::arg("rig"), py::kw_only(), py::arg("device") = "opencl",
+          py::arg("operator") = "auto", py::arg("joint_operators") = py::none(),
+          py::arg("untracked_joints") = py::none(),
+          py::arg("bulge_strength") = py::none(),
+          py::arg("blend_theta") = py::none(), py::arg("rounds") = py::none(),
+          py::arg("sigma") = py::none(), py::arg("contact_angle") = py::none(),
+          py::arg("smoothing_steps") = py::none(),
+          py::arg("relaxation") = py::none(),
+          py::arg("skinned_ring_relaxation") = py::none(),
+          py::arg("crease_gate") = py::none(),
+          py::arg("volume_restore") = py::none(),
+          py::arg("contact_bulge") = py::none(),
+          py::arg("dislocation_guard") = py::none(),
+          py::arg("base_skinning") = "dqs", py::arg("layers") = true,
+          py::arg("rigid_pieces") = "auto", py::arg("tracking") = "2013",
+          py::arg("cache_dir") = py::none(), py::arg("progress") = py::none())
       .def("run", &PyImplicitSkinner::run, py::arg("matrices"))
       .def("reset_history", &PyImplicitSkinner::resetHistory,
            "tracking='history': the next frame starts from skinning, as the "

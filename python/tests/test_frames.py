@@ -150,6 +150,25 @@ def test_volume_restore_option_reaches_the_tracking():
         isk.ImplicitSkinner(rig, device="reference", volume_restore=3.5)
 
 
+def test_contact_bulge_option_reaches_the_tracking():
+    # The finger bent 120 degrees at every joint: the bulge gives its
+    # contacts' volume back (other frames, more volume), on both devices;
+    # a value out of [0, 10] is a named error.
+    rig = isk.builtin_rig("finger")
+    pose = rig.bend_pose(120)
+    for device in ("reference", "opencl"):
+        on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
+        off = isk.ImplicitSkinner(rig, device=device,
+                                  contact_bulge=0.0).deform(pose)[0]
+        assert not np.array_equal(on, off)
+        # Not a rounding: some vertex moves by a thousandth of the size.
+        rest = rig.rest_positions.reshape(-1, 3)
+        moved = np.linalg.norm(on.reshape(-1, 3) - off.reshape(-1, 3), axis=1)
+        assert moved.max() > 1e-3 * np.ptp(rest, axis=0).max()
+    with pytest.raises(isk.InvalidArgumentError, match="contact_bulge"):
+        isk.ImplicitSkinner(rig, device="reference", contact_bulge=11.0)
+
+
 def test_history_tracking_option_reaches_the_skinner():
     # The leg bent to 150 degrees in 25-degree steps: the first frame is
     # the 2013 one, a later one starts from the last; after reset_history()

@@ -209,6 +209,23 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "piece of the mesh)")
           ->check(CLI::Range(0.0, 3.0))
           ->capture_default_str(),
+      app.add_option("--contact-bulge", tracking.contact_bulge,
+                     "implicit: where a closed part misses more volume than "
+                     "its inward moves give back, the largest push out of "
+                     "the band around its contacts, in mean edge lengths, "
+                     "[0, 10] (0: off)")
+          ->check(CLI::Range(0.0, 10.0))
+          ->capture_default_str(),
+      app.add_option("--contact-bulge-radius", tracking.contact_bulge_radius,
+                     "implicit: the reach of the contact bulge's band, a "
+                     "fraction of the diagonal along the mesh, (0, 1]")
+          ->check(CLI::Range(1e-6, 1.0))
+          ->capture_default_str(),
+      app.add_option("--contact-bulge-steps", tracking.contact_bulge_steps,
+                     "implicit: the rings the contact bulge's band grows "
+                     "over at most (0: no bulge)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")
