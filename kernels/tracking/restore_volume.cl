@@ -187,10 +187,10 @@ __kernel void track_restore_fractions(
 // After the step, the secant step back of each group that went past its
 // rest volume (volumeRestoreCorrection, volumeRestoreBackFactor): its
 // volume now (chunk_volumes of the stepped positions) less its volume
-// before is what it gained; where a group that stepped (a fraction or a
-// bulge fraction above 0) gained more than it missed, its fraction is
-// scaled by missing / gained and `back` receives missing / gained - 1
-// (negative), 0 elsewhere.
+// before is what it gained; where that exceeds what it missed, its
+// fraction is scaled by missing / gained and `back` receives the change
+// (corrected / fraction - 1, negative; missing / gained - 1 where only the
+// bulge stepped), 0 elsewhere.
 __kernel void track_restore_correct(
     const uint group_count, __global const int* triangle_chunk_offsets,
     __global const float* chunk_volumes, __global const float* rest_volumes,
@@ -208,10 +208,12 @@ __kernel void track_restore_correct(
     corrected = fraction * (missing / gained);
   previous[g] = fraction;
   fractions[g] = corrected;
-  const int stepped = fraction > 0.0f || bulge_fractions[g] > 0.0f;
-  back[g] = stepped && missing > 0.0f && gained > missing
-                ? missing / gained - 1.0f
-                : 0.0f;
+  if (fraction > 0.0f)
+    back[g] = corrected / fraction - 1.0f;
+  else
+    back[g] = bulge_fractions[g] > 0.0f && missing > 0.0f && gained > missing
+                  ? missing / gained - 1.0f
+                  : 0.0f;
 }
 
 // The step (volumeRestoreStep, volumeRestoreDistance): each weighted vertex

@@ -157,9 +157,9 @@ def test_contact_bulge_option_reaches_the_tracking():
     rig = isk.builtin_rig("finger")
     pose = rig.bend_pose(120)
     for device in ("reference", "opencl"):
-        on = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
-        off = isk.ImplicitSkinner(rig, device=device,
-                                  contact_bulge=0.0).deform(pose)[0]
+        on = isk.ImplicitSkinner(rig, device=device,
+                                 contact_bulge=3.0).deform(pose)[0]
+        off = isk.ImplicitSkinner(rig, device=device).deform(pose)[0]
         assert not np.array_equal(on, off)
         # Not a rounding: some vertex moves by a thousandth of the size.
         rest = rig.rest_positions.reshape(-1, 3)

@@ -1737,9 +1737,10 @@ TEST(SurfaceTracking, ContactBulgeKeepsTheVolumeOfDeepBends) {
     const TransformList pose =
         c.joint ? bendAt(rig, rig.skeleton.find(c.joint), c.degrees)
                 : test::bendAt(rig, 1, c.degrees);
-    ImplicitSkinnerOptions off;
-    off.tracking.contact_bulge = 0.f;
-    CpuImplicitSkinner with(rig, sharedFields(c.rig));
+    ImplicitSkinnerOptions on, off;
+    on.tracking.contact_bulge = 3.f;
+    ASSERT_EQ(off.tracking.contact_bulge, 0.f);  // off by default
+    CpuImplicitSkinner with(rig, sharedFields(c.rig), on);
     CpuImplicitSkinner without(rig, sharedFields(c.rig), off);
     ASSERT_GT(with.tracking().options().contact_bulge, 0.f);
     with.run(pose);
@@ -1784,7 +1785,9 @@ TEST(SurfaceTracking, ContactBulgeKeepsTheVolumeOfDeepBends) {
   EXPECT_GE(acted, 4) << "the bulge acted on too few deep bends";
   // The bind pose: nothing to give back, nothing moved.
   const Rig& leg = test::rigNamed("leg");
-  CpuImplicitSkinner rest_skinner(leg, sharedFields("leg"));
+  ImplicitSkinnerOptions on;
+  on.tracking.contact_bulge = 3.f;
+  CpuImplicitSkinner rest_skinner(leg, sharedFields("leg"), on);
   rest_skinner.run(bindPoseSkinning(leg.skeleton));
   for (const float kappa : rest_skinner.tracking().bulgeFractions())
     EXPECT_EQ(kappa, 0.f);
@@ -2773,6 +2776,15 @@ TEST(ImplicitSkinner, UngatedCreaseFramesMatchTheReferenceOnAssets) {
 
 // A volume restoration other than the default (1: at most the inward
 // moves given back) reaches the kernels: its frames match the reference's.
+TEST(ImplicitSkinner, ContactBulgeFramesMatchTheReference) {
+  ImplicitSkinnerOptions options;
+  options.tracking.contact_bulge = 3.f;
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    checkFrames(test::rigNamed(name), sharedFields(name), 4, options);
+  }
+}
+
 TEST(ImplicitSkinner, VolumeRestorationOfOneFramesMatchTheReference) {
   ImplicitSkinnerOptions options;
   options.tracking.volume_restore = 1.f;

@@ -215,11 +215,14 @@ float volumeRestoreDistance(float fraction, float factor, float limit,
   return std::min(fraction, limit) * factor * weight;
 }
 
-// The secant step back's factor (see volumeRestoreDistance): missing /
-// gained - 1 where a group that stepped (`stepped`: a fraction or a bulge
-// fraction above 0) gained more than it missed, 0 elsewhere.
-float volumeRestoreBackFactor(bool stepped, double missing, double gained) {
-  if (!stepped || !(missing > 0.0) || !(gained > missing)) return 0.f;
+// The secant step back's factor (see volumeRestoreDistance): the
+// corrected fraction over the first less 1; where only the contact bulge
+// stepped (fraction 0, bulge fraction above 0), missing / gained - 1 when
+// the group gained more than it missed; 0 elsewhere.
+float volumeRestoreBackFactor(float fraction, float corrected, float bulge,
+                              double missing, double gained) {
+  if (fraction > 0.f) return corrected / fraction - 1.f;
+  if (!(bulge > 0.f) || !(missing > 0.0) || !(gained > missing)) return 0.f;
   return static_cast<float>(missing / gained) - 1.f;
 }
 
@@ -1802,8 +1805,8 @@ void CpuSurfaceTracking::restoreVolume() {
     const double gained = groupVolume(g) - (groups.rest_volume[g] - missing[g]);
     volume_fractions_[g] =
         volumeRestoreCorrection(missing[g], gained, first[g]);
-    back[g] = volumeRestoreBackFactor(
-        first[g] > 0.f || bulge_fractions_[g] > 0.f, missing[g], gained);
+    back[g] = volumeRestoreBackFactor(first[g], volume_fractions_[g],
+                                      bulge_fractions_[g], missing[g], gained);
   }
   step(first, back);
   times_.volume_ms += millisecondsSince(start);
