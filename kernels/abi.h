@@ -50,6 +50,10 @@
 // back to its skinned position at most (pushed out past it there, the skin
 // presses into the other piece).
 #define ISK_VOLUME_NEAR_LIMIT 1.0f
+// The contact bulge's clearance ramp (field units): a band vertex's push
+// fades from full to none as the composed field at its probe rises from
+// this far below its iso value to it (contactBulgeClearance).
+#define ISK_BULGE_CLEARANCE_WIDTH 0.05f
 // Lane tests on a CPU device: fields tested eight at a time, each chunk
 // ISK_LANE_ROWS rows of ISK_LANE_WIDTH floats.
 #define ISK_LANE_WIDTH 8
@@ -111,5 +115,12 @@
   (ISK_PROJECT_ARG_COMPOSITION + ISK_COMPOSITION_ARG_COUNT)
 #define ISK_PROJECT_ARG_OTHER_POSITIONS (ISK_PROJECT_ARG_RELAX_FRAMES + 1)
 #define ISK_PROJECT_ARG_HOME_FLOORS (ISK_PROJECT_ARG_OTHER_POSITIONS + 1)
+
+// track_bulge_clearance's arguments (tracking/bulge_clearance.cl).
+#define ISK_BULGE_CLEARANCE_ARG_FIELDS 11
+#define ISK_BULGE_CLEARANCE_ARG_COMPOSITION \
+  (ISK_BULGE_CLEARANCE_ARG_FIELDS + ISK_FIELD_ARG_COUNT)
+#define ISK_BULGE_CLEARANCE_ARG_OUTPUT \
+  (ISK_BULGE_CLEARANCE_ARG_COMPOSITION + ISK_COMPOSITION_ARG_COUNT)
 
 #endif  // ISK_KERNELS_ABI_H

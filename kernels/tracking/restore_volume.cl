@@ -79,8 +79,8 @@ __kernel void track_bulge_band_grow(const uint vertex_count,
 // vertex, and their sum weighted by the vertices' rest areas; with a band
 // (contact bulge on), the bulge weights too (contactBulgeWeight: band times
 // 1 - gamma times the mean rest length of the ring's edges, of the
-// converged vertices where beta = 0 away from other components) and their
-// weighted sum.
+// converged vertices where beta = 0 away from other components, times their
+// clearance: tracking/bulge_clearance.cl) and their weighted sum.
 __kernel void track_restore_weights(
     const uint chunk_count, __global const int4* chunks,
     __global const int* entries, __global const uchar* states,
@@ -92,7 +92,7 @@ __kernel void track_restore_weights(
     __global float* weights, __global float* chunk_weighted, const int bulge,
     __global const float* band, __global const uchar* near_other,
     __global const float* ring_lengths, __global float* bulge_weights,
-    __global float* chunk_bulge_weighted) {
+    __global float* chunk_bulge_weighted, __global const float* clearance) {
   const uint k = get_global_id(0);
   if (k >= chunk_count) return;
   const int4 chunk = chunks[k];
@@ -131,7 +131,8 @@ __kernel void track_restore_weights(
           !near_other[v] && band[v] > 0.0f) {
         float length = 0.0f;
         for (uint i = begin; i < end; ++i) length += ring_lengths[i];
-        u = band[v] * (1.0f - bc.y) * (length / (float)(end - begin));
+        u = band[v] * (1.0f - bc.y) * (length / (float)(end - begin)) *
+            clearance[v];
       }
       bulge_weights[v] = u;
       bulge_sum += u * areas[v];

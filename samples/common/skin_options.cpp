@@ -226,6 +226,13 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "over at most (0: no bulge)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str(),
+      app.add_option("--contact-bulge-clearance",
+                     tracking.contact_bulge_clearance,
+                     "implicit: how far out the contact bulge probes for "
+                     "another part before pushing a vertex, in largest "
+                     "pushes, [0, 10] (0: no probe)")
+          ->check(CLI::Range(0.0, 10.0))
+          ->capture_default_str(),
       app.add_option("--strain-limit", tracking.strain_limit,
                      "implicit: how much two neighbours' offsets from DQS "
                      "may differ, as a fraction of their rest distance")

@@ -140,6 +140,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"contact_bulge", t.contact_bulge},
           {"contact_bulge_radius", t.contact_bulge_radius},
           {"contact_bulge_steps", t.contact_bulge_steps},
+          {"contact_bulge_clearance", t.contact_bulge_clearance},
           {"strain_limit", t.strain_limit},
           {"strain_limit_steps", t.strain_limit_steps},
           {"fold_guard", t.fold_guard},

@@ -113,6 +113,9 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   restore_correct_ = cl::Kernel(restore, "track_restore_correct");
   bulge_band_init_ = cl::Kernel(restore, "track_bulge_band_init");
   bulge_band_grow_ = cl::Kernel(restore, "track_bulge_band_grow");
+  bulge_clearance_ = cl::Kernel(
+      context_->program("tracking/bulge_clearance", fields.buildOptions()),
+      "track_bulge_clearance");
 }
 
 void ClSurfaceTracking::uploadLayout(
@@ -245,6 +248,9 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
     b = rw(n * sizeof(float));
     context_->queue().enqueueFillBuffer(b, 0.0f, 0, n * sizeof(float));
   }
+  bulge_clearances_ = rw(n * sizeof(float));
+  context_->queue().enqueueFillBuffer(bulge_clearances_, 1.0f, 0,
+                                      n * sizeof(float));
   bulge_weights_buffer_ = rw(n * sizeof(float));
   context_->queue().enqueueFillBuffer(bulge_weights_buffer_, 0.0f, 0,
                                       n * sizeof(float));
@@ -743,6 +749,29 @@ void ClSurfaceTracking::restoreVolume() {
         launch(bulge_band_grow_, kVolume);
         bulge_current_ = 1 - bulge_current_;
       }
+      // The clearance probe: the largest push times the clearance, in mean
+      // ring edge lengths.
+      bulge_clearance_.setArg(0, n);
+      bulge_clearance_.setArg(1, states_);
+      bulge_clearance_.setArg(2, bulge_band_[bulge_current_]);
+      bulge_clearance_.setArg(3, positions);
+      bulge_clearance_.setArg(4, fallback_normals_);
+      bulge_clearance_.setArg(5, begin_source_);
+      bulge_clearance_.setArg(6, volume_signs_);
+      bulge_clearance_.setArg(7, ring_offsets_);
+      bulge_clearance_.setArg(8, ring_lengths_);
+      bulge_clearance_.setArg(9, iso_values_);
+      bulge_clearance_.setArg(
+          10, options_.contact_bulge_clearance * options_.contact_bulge);
+      fields_->setFieldArgs(bulge_clearance_, ISK_BULGE_CLEARANCE_ARG_FIELDS);
+      if (!detail::tuningOf(options_).occupied_cells)
+        bulge_clearance_.setArg(
+            ISK_BULGE_CLEARANCE_ARG_FIELDS + ISK_FIELD_ARG_CELLS, every_cell_);
+      fields_->setCompositionArgs(bulge_clearance_,
+                                  ISK_BULGE_CLEARANCE_ARG_COMPOSITION);
+      bulge_clearance_.setArg(ISK_BULGE_CLEARANCE_ARG_OUTPUT,
+                              bulge_clearances_);
+      launch(bulge_clearance_, kVolume);
     }
     restore_weights_.setArg(0,
                             static_cast<cl_uint>(volume_vertex_chunks_count_));
@@ -767,6 +796,7 @@ void ClSurfaceTracking::restoreVolume() {
     restore_weights_.setArg(19, ring_lengths_);
     restore_weights_.setArg(20, bulge_weights_buffer_);
     restore_weights_.setArg(21, bulge_chunk_sums_);
+    restore_weights_.setArg(22, bulge_clearances_);
     launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
     restore_fractions_.setArg(0, static_cast<cl_uint>(volume_group_count_));
     restore_fractions_.setArg(1, volume_triangle_chunk_offsets_);

@@ -255,6 +255,14 @@ float contactBulgeWeight(TrackState state, float beta, float gamma,
   return band * (1.f - gamma) * mean_length;
 }
 
+// The contact bulge's clearance at a band vertex: 1 where the composed
+// field at its probe (out along its push) is below its iso value by
+// ISK_BULGE_CLEARANCE_WIDTH or more, falling linearly to 0 where it reaches
+// the iso value: another part's surface is within the probe's reach.
+float contactBulgeClearance(float probe_value, float iso) {
+  return std::clamp((iso - probe_value) / ISK_BULGE_CLEARANCE_WIDTH, 0.f, 1.f);
+}
+
 // A group's contact bulge fraction kappa: what the inward moves cannot give
 // back at volume_restore times their sum, over the sum of the bulge
 // weights (sum u A), in [0, limit].
@@ -385,6 +393,10 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(contact_bulge_radius > 0 && contact_bulge_radius <= 1))
     return bad("contact_bulge_radius " + std::to_string(contact_bulge_radius) +
                ": expected a fraction of the diagonal in (0, 1]");
+  if (!(contact_bulge_clearance >= 0 && contact_bulge_clearance <= 10))
+    return bad("contact_bulge_clearance " +
+               std::to_string(contact_bulge_clearance) +
+               ": expected largest pushes in [0, 10]");
   if (contact_bulge_steps < 0 || contact_bulge_steps > 1000)
     return bad("contact_bulge_steps " + std::to_string(contact_bulge_steps) +
                ": expected 0 to 1000");
@@ -1719,6 +1731,8 @@ void CpuSurfaceTracking::restoreVolume() {
   const bool near_rows = static_cast<int>(groups.near_other.size()) == n;
   const bool bulge =
       options_.contact_bulge > 0.f && options_.contact_bulge_steps > 0;
+  const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
+  std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
   if (bulge) {
     // The band around the contacts, one ring per step (Jacobi).
     for (int v = 0; v < n; ++v)
@@ -1763,10 +1777,20 @@ void CpuSurfaceTracking::restoreVolume() {
     if (bulge && end > begin) {
       float length = 0.f;
       for (uint32_t i = begin; i < end; ++i) length += mesh_->ring_lengths[i];
-      bulge_weights_[v] =
-          contactBulgeWeight(states_[v], beta_[2 * v], beta_[2 * v + 1],
-                             near_rows && groups.near_other[v], bulge_band_[v],
-                             length / static_cast<float>(end - begin));
+      const float mean_length = length / static_cast<float>(end - begin);
+      bulge_weights_[v] = contactBulgeWeight(
+          states_[v], beta_[2 * v], beta_[2 * v + 1],
+          near_rows && groups.near_other[v], bulge_band_[v], mean_length);
+      if (bulge_weights_[v] > 0.f && options_.contact_bulge_clearance > 0.f) {
+        // The probe: the largest push times the clearance, out along it.
+        const Eigen::Vector3f probe = volumeRestoreStep(
+            positions_.row(v).transpose(), fallback_normals_.row(v).transpose(),
+            groups.normal_sign[v],
+            options_.contact_bulge_clearance * options_.contact_bulge *
+                mean_length);
+        bulge_weights_[v] *= contactBulgeClearance(
+            sampler.sample(probe, per_field.data())[0], mesh_->iso_values[v]);
+      }
       bulge_weighted[g] += bulge_weights_[v] * groups.vertex_area[v];
     }
   }

@@ -166,7 +166,8 @@ class ClSurfaceTracking {
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
       volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
-      restore_correct_, untrack_, bulge_band_init_, bulge_band_grow_;
+      restore_correct_, untrack_, bulge_band_init_, bulge_band_grow_,
+      bulge_clearance_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, partners_, neighbour_offsets_,
@@ -243,10 +244,11 @@ class ClSurfaceTracking {
       volume_fractions_, volume_missing_, volume_previous_, volume_back_,
       volume_ones_, restore_weights_buffer_;
   // The contact bulge: each vertex's reach (trackingLengths), its band
-  // (ping-pong, bulge_band_[bulge_current_] the last) and weight, the
-  // chunks' sums of the weights and the groups' fractions.
+  // (ping-pong, bulge_band_[bulge_current_] the last), clearance and
+  // weight, the chunks' sums of the weights and the
+  // groups' fractions.
   cl::Buffer bulge_reaches_, bulge_band_[2], bulge_weights_buffer_,
-      bulge_chunk_sums_, bulge_fractions_;
+      bulge_chunk_sums_, bulge_fractions_, bulge_clearances_;
   int bulge_current_ = 0;
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;

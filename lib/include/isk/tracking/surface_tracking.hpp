@@ -108,8 +108,12 @@
 // mesh to 0 at contact_bulge_radius of the diagonal, grown over
 // contact_bulge_steps rings at most) weighs the converged vertices away
 // from contacts and other components: u = b (1 - gamma) e, e the mean rest
-// length of the vertex's ring edges; the rest of the missing volume goes
-// out along n by a common fraction of u:
+// length of the vertex's ring edges, times its clearance c in [0, 1]: 1
+// where the composed field probed out along n, contact_bulge_clearance
+// times its largest push away, stays ISK_BULGE_CLEARANCE_WIDTH below its
+// iso value, 0 where it reaches it (a part it faces within that reach:
+// no push into it); the rest of the missing volume goes out along n by a
+// common fraction of u:
 //   x <- x + min(lambda, L) w n + min(kappa, contact_bulge) u n,
 //   kappa = (V_rest - V - volume_restore sum(w A)) / sum(u A),
 // both stepped back together by the secant.
@@ -229,6 +233,11 @@ struct SurfaceTrackingOptions {
   float contact_bulge = 0.f;
   float contact_bulge_radius = 0.2f;
   int contact_bulge_steps = 16;
+  // The contact bulge's clearance probe: a band vertex is pushed only where
+  // the composed field this far out along its push (in largest pushes,
+  // [0, 10]; 0: no probe) is below its iso value, fading to 0 as another
+  // part's surface comes within that reach (no push into a part it faces).
+  float contact_bulge_clearance = 2.f;
   // Two fields joined by a blend are not other parts for the contact by
   // home field while their joint is turned by less than this from its bind
   // pose (degrees): the blend shapes a fold that turns by less into a
