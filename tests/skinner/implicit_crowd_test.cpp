@@ -279,8 +279,16 @@ TEST(ImplicitCrowd, OverlappingInstancesStopAtEachOther) {
   alone.readPositions(own);
   EXPECT_LT(own.col(1).minCoeff(), 0.6f);
   EXPECT_GT(lowest, 0.65f);
-  // And instance 0's highest, symmetrically, stops below its own top.
-  const float highest = rowsOf(positions, 0, v).col(1).maxCoeff();
+  // And instance 0's highest, symmetrically, stops below its own top. Not
+  // counting the end rims (rest x within 0.5 of either end): the fields
+  // round them off, so instance 1's field stays below its surface value
+  // there and the contact bulge pushes them out like any skin beside a
+  // contact.
+  float highest = -std::numeric_limits<float>::infinity();
+  for (int i = 0; i < v; ++i) {
+    const float x = cylinder.mesh.positions(i, 0);
+    if (x > 0.5f && x < 7.5f) highest = std::max(highest, positions(i, 1));
+  }
   EXPECT_LT(highest, 0.85f);
 }
 

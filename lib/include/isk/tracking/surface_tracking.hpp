@@ -100,7 +100,7 @@
 // curved part) is stepped back by the secant: lambda scaled by (V_rest -
 // V) over the volume it gained. Components with holes (more than 1% of their
 // vertices on a border) and meshes that enclose no volume are left alone.
-// Contact bulge (contact_bulge, off by default; our addition, see
+// Contact bulge (contact_bulge, on by default; our addition, see
 // docs/algorithm.md): where a component misses more volume than its inward
 // moves can give back (V_rest - V > volume_restore sum(w A)), the flesh
 // pressed at its contacts bulges beside them. A band b around the contact
@@ -226,11 +226,11 @@ struct SurfaceTrackingOptions {
   // docs/algorithm.md measures the default).
   float volume_restore = 3.f;
   // The contact bulge (see above): the largest push of a band vertex, in
-  // its mean rest edge lengths, [0, 10] (0: off; 3 is the measured
-  // setting, docs/algorithm.md says why it is not the default); the band's
+  // its mean rest edge lengths, [0, 10] (0: off; docs/algorithm.md
+  // measures the default); the band's
   // reach, a fraction of the diagonal (rest distance along the mesh), and the
   // rings it grows over at most (each step one ring; cost grows with them).
-  float contact_bulge = 0.f;
+  float contact_bulge = 3.f;
   float contact_bulge_radius = 0.2f;
   int contact_bulge_steps = 16;
   // The contact bulge's clearance probe: a band vertex is pushed only where
