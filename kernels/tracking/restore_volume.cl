@@ -3,11 +3,12 @@
 // volume moves the vertices tracking moved inward from their skinned
 // position back out along the skinned normal, by one fraction per component;
 // what they cannot give back, the contact bulge pushes out over a band
-// around the contacts.
+// around the contacts (only on frames where some component needs it).
 // OpenCL C 1.2. CPU reference: CpuSurfaceTracking::restoreVolume and
 // volumeRestoreWeight / volumeRestoreFraction / volumeRestoreLimit /
 // volumeRestoreDistance / volumeRestoreBackFactor / volumeRestoreStep /
-// contactBandStep / contactBulgeWeight / contactBulgeFraction
+// contactBulgeNeeded / contactBandStep / contactBulgeWeight /
+// contactBulgeFraction
 // (lib/src/tracking/surface_tracking.cpp); the groups are
 // TrackingMesh::VolumeGroups.
 //
@@ -44,27 +45,33 @@ __kernel void track_volume_chunks(const uint chunk_count,
   chunk_volumes[k] = sum;
 }
 
-// The contact bulge's band: 1 on the contact vertices, 0 elsewhere.
+// The contact bulge's band: 1 on the contact vertices, 0 elsewhere; 0
+// everywhere when no group needs the bulge (needed[0], set by
+// track_restore_fractions): the grow and the probe then have nothing to do.
 __kernel void track_bulge_band_init(const uint vertex_count,
                                     __global const uchar* states,
+                                    __global const int* needed,
                                     __global float* band) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  band[v] = states[v] == ISK_TRACK_CONTACT ? 1.0f : 0.0f;
+  band[v] = needed[0] && states[v] == ISK_TRACK_CONTACT ? 1.0f : 0.0f;
 }
 
 // One ring more of the band (contactBandStep): the largest of the vertex's
 // own and each neighbour's less the edge's rest length over the vertex's
-// reach (contact_bulge_radius of its diagonal).
-__kernel void track_bulge_band_grow(const uint vertex_count,
-                                    __global const uint* ring_offsets,
-                                    __global const int* ring_neighbours,
-                                    __global const float* ring_lengths,
-                                    __global const float* reaches,
-                                    __global const float* band,
-                                    __global float* next) {
+// reach (contact_bulge_radius of its diagonal); 0 when no group needs the
+// bulge.
+__kernel void track_bulge_band_grow(
+    const uint vertex_count, __global const uint* ring_offsets,
+    __global const int* ring_neighbours, __global const float* ring_lengths,
+    __global const float* reaches, __global const int* needed,
+    __global const float* band, __global float* next) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
+  if (!needed[0]) {
+    next[v] = 0.0f;
+    return;
+  }
   const float reach = reaches[v];
   float b = band[v];
   for (uint i = ring_offsets[v]; i < ring_offsets[v + 1]; ++i)
@@ -76,11 +83,7 @@ __kernel void track_bulge_band_grow(const uint vertex_count,
 // the skinned position along the skinned normal times its sign (outward),
 // times 1 - gamma, of the converged vertices where beta = 0, faded by the
 // share of their ring that moves too; 0 for the others), written per
-// vertex, and their sum weighted by the vertices' rest areas; with a band
-// (contact bulge on), the bulge weights too (contactBulgeWeight: band times
-// 1 - gamma times the mean rest length of the ring's edges, of the
-// converged vertices where beta = 0 away from other components, times their
-// clearance: tracking/bulge_clearance.cl) and their weighted sum.
+// vertex, and their sum weighted by the vertices' rest areas.
 __kernel void track_restore_weights(
     const uint chunk_count, __global const int4* chunks,
     __global const int* entries, __global const uchar* states,
@@ -89,20 +92,16 @@ __kernel void track_restore_weights(
     __global const int* source, __global const float* areas,
     __global const float* signs, __global const int* groups,
     __global const uint* ring_offsets, __global const int* ring_neighbours,
-    __global float* weights, __global float* chunk_weighted, const int bulge,
-    __global const float* band, __global const uchar* near_other,
-    __global const float* ring_lengths, __global float* bulge_weights,
-    __global float* chunk_bulge_weighted, __global const float* clearance) {
+    __global float* weights, __global float* chunk_weighted) {
   const uint k = get_global_id(0);
   if (k >= chunk_count) return;
   const int4 chunk = chunks[k];
-  float sum = 0.0f, bulge_sum = 0.0f;
+  float sum = 0.0f;
   for (int e = chunk.y; e < chunk.z; ++e) {
     const int v = entries[e];
-    const uchar state = states[v];
     const float2 bc = beta[v];
     float w = 0.0f;
-    if (state == ISK_TRACK_CONVERGED && !(bc.x > 0.0f)) {
+    if (states[v] == ISK_TRACK_CONVERGED && !(bc.x > 0.0f)) {
       const float3 n = vload3(source[v], skinned_normals);
       const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
       if (length > 0.0f && isfinite(length)) {
@@ -124,22 +123,43 @@ __kernel void track_restore_weights(
     }
     weights[v] = w;
     sum += w * areas[v];
-    if (bulge) {
-      const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
-      float u = 0.0f;
-      if (end > begin && state == ISK_TRACK_CONVERGED && !(bc.x > 0.0f) &&
-          !near_other[v] && band[v] > 0.0f) {
-        float length = 0.0f;
-        for (uint i = begin; i < end; ++i) length += ring_lengths[i];
-        u = band[v] * (1.0f - bc.y) * (length / (float)(end - begin)) *
-            clearance[v];
-      }
-      bulge_weights[v] = u;
-      bulge_sum += u * areas[v];
-    }
   }
   chunk_weighted[k] = sum;
-  if (bulge) chunk_bulge_weighted[k] = bulge_sum;
+}
+
+// Each chunk's vertices' bulge weights (contactBulgeWeight: band times
+// 1 - gamma times the mean rest length of the ring's edges, of the
+// converged vertices where beta = 0 away from other components, times their
+// clearance: tracking/bulge_clearance.cl; 0 off the band), written per
+// vertex, and their sum weighted by the vertices' rest areas.
+__kernel void track_bulge_weights(
+    const uint chunk_count, __global const int4* chunks,
+    __global const int* entries, __global const uchar* states,
+    __global const float2* beta, __global const float* areas,
+    __global const uint* ring_offsets, __global const float* ring_lengths,
+    __global const float* band, __global const uchar* near_other,
+    __global const float* clearance, __global float* bulge_weights,
+    __global float* chunk_bulge_weighted) {
+  const uint k = get_global_id(0);
+  if (k >= chunk_count) return;
+  const int4 chunk = chunks[k];
+  float sum = 0.0f;
+  for (int e = chunk.y; e < chunk.z; ++e) {
+    const int v = entries[e];
+    const float2 bc = beta[v];
+    const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
+    float u = 0.0f;
+    if (end > begin && states[v] == ISK_TRACK_CONVERGED && !(bc.x > 0.0f) &&
+        !near_other[v] && band[v] > 0.0f) {
+      float length = 0.0f;
+      for (uint i = begin; i < end; ++i) length += ring_lengths[i];
+      u = band[v] * (1.0f - bc.y) * (length / (float)(end - begin)) *
+          clearance[v];
+    }
+    bulge_weights[v] = u;
+    sum += u * areas[v];
+  }
+  chunk_bulge_weighted[k] = sum;
 }
 
 // A group's volume: the sum of its triangle chunks over 6.
@@ -155,24 +175,22 @@ ISK_INLINE float group_volume(const uint g,
 
 // Each group's fraction (volumeRestoreFraction): its missing volume (rest
 // less its volume, also written to `missing`) over the sum of its vertex
-// chunks, in [0, limit]; with the contact bulge on, its bulge fraction
-// (contactBulgeFraction): what the inward moves cannot give back at `limit`
-// over the sum of its bulge chunks, in [0, bulge_limit] (0 when off).
+// chunks, in [0, limit]. With the contact bulge on (contactBulgeNeeded),
+// what the inward moves cannot give back at `limit` goes to bulge_missing
+// (0 where they can) and any group with some sets needed[0] (cleared
+// before); with it off, bulge_missing is 0.
 __kernel void track_restore_fractions(
     const uint group_count, __global const int* triangle_chunk_offsets,
     __global const int* vertex_chunk_offsets,
     __global const float* chunk_volumes, __global const float* chunk_weighted,
     __global const float* rest_volumes, const float limit,
     __global float* fractions, __global float* missing_volumes, const int bulge,
-    __global const float* chunk_bulge_weighted, const float bulge_limit,
-    __global float* bulge_fractions) {
+    __global float* bulge_missing, __global volatile int* needed) {
   const uint g = get_global_id(0);
   if (g >= group_count) return;
-  float weighted = 0.0f, bulge_weighted = 0.0f;
-  for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k) {
+  float weighted = 0.0f;
+  for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k)
     weighted += chunk_weighted[k];
-    if (bulge) bulge_weighted += chunk_bulge_weighted[k];
-  }
   const float missing =
       rest_volumes[g] - group_volume(g, triangle_chunk_offsets, chunk_volumes);
   missing_volumes[g] = missing;
@@ -180,7 +198,25 @@ __kernel void track_restore_fractions(
                      ? fmin(missing / weighted, limit)
                      : 0.0f;
   const float rest = missing - limit * weighted;
-  bulge_fractions[g] = bulge && rest > 0.0f && bulge_weighted > 0.0f
+  bulge_missing[g] = bulge && rest > 0.0f ? rest : 0.0f;
+  if (bulge && rest > 0.0f) atomic_or(needed, 1);
+}
+
+// Each group's contact bulge fraction (contactBulgeFraction): its
+// bulge_missing over the sum of its bulge chunks, in [0, bulge_limit].
+__kernel void track_bulge_fractions(const uint group_count,
+                                    __global const int* vertex_chunk_offsets,
+                                    __global const float* chunk_bulge_weighted,
+                                    __global const float* bulge_missing,
+                                    const float bulge_limit,
+                                    __global float* bulge_fractions) {
+  const uint g = get_global_id(0);
+  if (g >= group_count) return;
+  float bulge_weighted = 0.0f;
+  for (int k = vertex_chunk_offsets[g]; k < vertex_chunk_offsets[g + 1]; ++k)
+    bulge_weighted += chunk_bulge_weighted[k];
+  const float rest = bulge_missing[g];
+  bulge_fractions[g] = rest > 0.0f && bulge_weighted > 0.0f
                            ? fmin(rest / bulge_weighted, bulge_limit)
                            : 0.0f;
 }

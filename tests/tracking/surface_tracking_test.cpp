@@ -1761,7 +1761,8 @@ TEST(SurfaceTracking, SleevedArmFollowsTheSkinAgainstDqs) {
 // max(DQS's loss, 2%) with it, as the quality targets ask, and is no
 // higher without it; no more new pairs than without it (a
 // twentieth more at most) nor than DQS; a band that is 1 on the contacts
-// and falls off with the distance; nothing moved on the bind pose.
+// where the frame needs the bulge and falls off with the distance; nothing
+// moved on the bind pose.
 TEST(SurfaceTracking, ContactBulgeKeepsTheVolumeOfDeepBends) {
   struct Case {
     std::string rig;
@@ -1812,12 +1813,15 @@ TEST(SurfaceTracking, ContactBulgeKeepsTheVolumeOfDeepBends) {
     EXPECT_GE(a, b - 1e-3);
     EXPECT_LE(m.new_pairs, n.new_pairs + n.new_pairs / 20);
     EXPECT_LE(m.new_pairs, d.new_pairs);
-    // The band: 1 on the contacts, in [0, 1], and below 1 elsewhere.
+    // The band, where the frame needs the bulge: 1 on the contacts, in
+    // [0, 1], and below 1 elsewhere.
     const CpuSurfaceTracking& tracking = with.tracking();
     for (int v = 0; v < rig.mesh.vertexCount(); ++v) {
       const float band = tracking.bulgeBand()[v];
       EXPECT_GE(band,
-                tracking.states()[v] == TrackState::kContact ? 1.f : -1e9f)
+                largest > 0.f && tracking.states()[v] == TrackState::kContact
+                    ? 1.f
+                    : 0.f)
           << "vertex " << v;
       EXPECT_LE(band, 1.f) << "vertex " << v;
       if (tracking.bulgeWeights()[v] > 0.f)
@@ -1850,6 +1854,42 @@ TEST(SurfaceTracking, ContactBulgeKeepsTheVolumeOfDeepBends) {
   bad.contact_bulge_steps = -2;
   EXPECT_NE(bad.validate().reason().find("contact_bulge_steps"),
             std::string::npos);
+}
+
+// The contact bulge runs only where some part misses more volume than its
+// inward moves give back: the arm bent 90 degrees presses into contact (83
+// contact vertices) and its inward moves suffice, so no band is grown and
+// its frame is the bulge-less one bit for bit; the finger bent 90 degrees
+// needs it.
+TEST(SurfaceTracking, ContactBulgeRunsOnlyWhereAPartNeedsIt) {
+  ImplicitSkinnerOptions off;
+  off.tracking.contact_bulge = 0.f;
+  {
+    const Rig& arm = test::rigNamed("arm");
+    const TransformList pose = test::bendAt(arm, 1, 90);
+    CpuImplicitSkinner with(arm, sharedFields("arm"));
+    CpuImplicitSkinner without(arm, sharedFields("arm"), off);
+    with.run(pose);
+    without.run(pose);
+    int contacts = 0;
+    for (const TrackState s : with.tracking().states())
+      contacts += s == TrackState::kContact;
+    EXPECT_GT(contacts, 20);
+    for (const float kappa : with.tracking().bulgeFractions())
+      EXPECT_EQ(kappa, 0.f);
+    for (const float b : with.tracking().bulgeBand()) EXPECT_EQ(b, 0.f);
+    for (const float u : with.tracking().bulgeWeights()) EXPECT_EQ(u, 0.f);
+    EXPECT_TRUE(with.positions() == without.positions());
+  }
+  const Rig& finger = test::rigNamed("finger");
+  CpuImplicitSkinner with(finger, sharedFields("finger"));
+  with.run(test::bendAt(finger, 1, 90));
+  float band = 0.f, kappa = 0.f;
+  for (const float b : with.tracking().bulgeBand()) band = std::max(band, b);
+  for (const float k : with.tracking().bulgeFractions())
+    kappa = std::max(kappa, k);
+  EXPECT_EQ(band, 1.f);
+  EXPECT_GT(kappa, 0.f);
 }
 
 // The contact bulge's clearance probe: on the tests' dense cylinder bent 135

@@ -113,6 +113,8 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   restore_correct_ = cl::Kernel(restore, "track_restore_correct");
   bulge_band_init_ = cl::Kernel(restore, "track_bulge_band_init");
   bulge_band_grow_ = cl::Kernel(restore, "track_bulge_band_grow");
+  bulge_weights_ = cl::Kernel(restore, "track_bulge_weights");
+  bulge_fractions_kernel_ = cl::Kernel(restore, "track_bulge_fractions");
   bulge_clearance_ = cl::Kernel(
       context_->program("tracking/bulge_clearance", fields.buildOptions()),
       "track_bulge_clearance");
@@ -261,9 +263,13 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   context_->queue().enqueueFillBuffer(
       bulge_fractions_, 0.0f, 0,
       std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  bulge_missing_ = rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  bulge_needed_ = rw(sizeof(cl_int));
+  context_->queue().enqueueFillBuffer(bulge_needed_, cl_int{0}, 0,
+                                      sizeof(cl_int));
   bytes_ += 3 * n * sizeof(float) +
             (static_cast<size_t>(volume_vertex_chunks_count_) +
-             volume_group_count_ + 2) *
+             2 * volume_group_count_ + 4) *
                 sizeof(float);
   volume_chunk_sums_[0] =
       rw(std::max<size_t>(volume_triangle_chunks_count_, 1) * sizeof(float));
@@ -731,11 +737,48 @@ void ClSurfaceTracking::restoreVolume() {
     volume_chunks_.setArg(4, positions);
     volume_chunks_.setArg(5, volume_chunk_sums_[0]);
     launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
+    restore_weights_.setArg(0,
+                            static_cast<cl_uint>(volume_vertex_chunks_count_));
+    restore_weights_.setArg(1, volume_vertex_chunks_);
+    restore_weights_.setArg(2, volume_vertices_);
+    restore_weights_.setArg(3, states_);
+    restore_weights_.setArg(4, beta_[beta_current_]);
+    restore_weights_.setArg(5, positions);
+    restore_weights_.setArg(6, skinned_positions_);
+    restore_weights_.setArg(7, fallback_normals_);
+    restore_weights_.setArg(8, begin_source_);
+    restore_weights_.setArg(9, volume_areas_);
+    restore_weights_.setArg(10, volume_signs_);
+    restore_weights_.setArg(11, volume_groups_);
+    restore_weights_.setArg(12, ring_offsets_);
+    restore_weights_.setArg(13, ring_neighbours_);
+    restore_weights_.setArg(14, restore_weights_buffer_);
+    restore_weights_.setArg(15, volume_chunk_sums_[1]);
+    launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
+    if (bulge)
+      context_->queue().enqueueFillBuffer(bulge_needed_, cl_int{0}, 0,
+                                          sizeof(cl_int));
+    restore_fractions_.setArg(0, static_cast<cl_uint>(volume_group_count_));
+    restore_fractions_.setArg(1, volume_triangle_chunk_offsets_);
+    restore_fractions_.setArg(2, volume_vertex_chunk_offsets_);
+    restore_fractions_.setArg(3, volume_chunk_sums_[0]);
+    restore_fractions_.setArg(4, volume_chunk_sums_[1]);
+    restore_fractions_.setArg(5, volume_rest_);
+    restore_fractions_.setArg(6, options_.volume_restore);
+    restore_fractions_.setArg(7, volume_fractions_);
+    restore_fractions_.setArg(8, volume_missing_);
+    restore_fractions_.setArg(9, static_cast<cl_int>(bulge));
+    restore_fractions_.setArg(10, bulge_missing_);
+    restore_fractions_.setArg(11, bulge_needed_);
+    launch(restore_fractions_, kVolume, volume_group_count_);
     if (bulge) {
+      // The band, probe and weights only do work where some group needs the
+      // bulge (bulge_needed_): the band is 0 everywhere otherwise.
       const cl_uint n = static_cast<cl_uint>(vertex_count_);
       bulge_band_init_.setArg(0, n);
       bulge_band_init_.setArg(1, states_);
-      bulge_band_init_.setArg(2, bulge_band_[0]);
+      bulge_band_init_.setArg(2, bulge_needed_);
+      bulge_band_init_.setArg(3, bulge_band_[0]);
       launch(bulge_band_init_, kVolume);
       bulge_current_ = 0;
       bulge_band_grow_.setArg(0, n);
@@ -743,9 +786,10 @@ void ClSurfaceTracking::restoreVolume() {
       bulge_band_grow_.setArg(2, ring_neighbours_);
       bulge_band_grow_.setArg(3, ring_lengths_);
       bulge_band_grow_.setArg(4, bulge_reaches_);
+      bulge_band_grow_.setArg(5, bulge_needed_);
       for (int k = 0; k < options_.contact_bulge_steps; ++k) {
-        bulge_band_grow_.setArg(5, bulge_band_[bulge_current_]);
-        bulge_band_grow_.setArg(6, bulge_band_[1 - bulge_current_]);
+        bulge_band_grow_.setArg(6, bulge_band_[bulge_current_]);
+        bulge_band_grow_.setArg(7, bulge_band_[1 - bulge_current_]);
         launch(bulge_band_grow_, kVolume);
         bulge_current_ = 1 - bulge_current_;
       }
@@ -772,46 +816,34 @@ void ClSurfaceTracking::restoreVolume() {
       bulge_clearance_.setArg(ISK_BULGE_CLEARANCE_ARG_OUTPUT,
                               bulge_clearances_);
       launch(bulge_clearance_, kVolume);
-    }
-    restore_weights_.setArg(0,
+      bulge_weights_.setArg(0,
                             static_cast<cl_uint>(volume_vertex_chunks_count_));
-    restore_weights_.setArg(1, volume_vertex_chunks_);
-    restore_weights_.setArg(2, volume_vertices_);
-    restore_weights_.setArg(3, states_);
-    restore_weights_.setArg(4, beta_[beta_current_]);
-    restore_weights_.setArg(5, positions);
-    restore_weights_.setArg(6, skinned_positions_);
-    restore_weights_.setArg(7, fallback_normals_);
-    restore_weights_.setArg(8, begin_source_);
-    restore_weights_.setArg(9, volume_areas_);
-    restore_weights_.setArg(10, volume_signs_);
-    restore_weights_.setArg(11, volume_groups_);
-    restore_weights_.setArg(12, ring_offsets_);
-    restore_weights_.setArg(13, ring_neighbours_);
-    restore_weights_.setArg(14, restore_weights_buffer_);
-    restore_weights_.setArg(15, volume_chunk_sums_[1]);
-    restore_weights_.setArg(16, static_cast<cl_int>(bulge));
-    restore_weights_.setArg(17, bulge_band_[bulge_current_]);
-    restore_weights_.setArg(18, volume_near_);
-    restore_weights_.setArg(19, ring_lengths_);
-    restore_weights_.setArg(20, bulge_weights_buffer_);
-    restore_weights_.setArg(21, bulge_chunk_sums_);
-    restore_weights_.setArg(22, bulge_clearances_);
-    launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
-    restore_fractions_.setArg(0, static_cast<cl_uint>(volume_group_count_));
-    restore_fractions_.setArg(1, volume_triangle_chunk_offsets_);
-    restore_fractions_.setArg(2, volume_vertex_chunk_offsets_);
-    restore_fractions_.setArg(3, volume_chunk_sums_[0]);
-    restore_fractions_.setArg(4, volume_chunk_sums_[1]);
-    restore_fractions_.setArg(5, volume_rest_);
-    restore_fractions_.setArg(6, options_.volume_restore);
-    restore_fractions_.setArg(7, volume_fractions_);
-    restore_fractions_.setArg(8, volume_missing_);
-    restore_fractions_.setArg(9, static_cast<cl_int>(bulge));
-    restore_fractions_.setArg(10, bulge_chunk_sums_);
-    restore_fractions_.setArg(11, options_.contact_bulge);
-    restore_fractions_.setArg(12, bulge_fractions_);
-    launch(restore_fractions_, kVolume, volume_group_count_);
+      bulge_weights_.setArg(1, volume_vertex_chunks_);
+      bulge_weights_.setArg(2, volume_vertices_);
+      bulge_weights_.setArg(3, states_);
+      bulge_weights_.setArg(4, beta_[beta_current_]);
+      bulge_weights_.setArg(5, volume_areas_);
+      bulge_weights_.setArg(6, ring_offsets_);
+      bulge_weights_.setArg(7, ring_lengths_);
+      bulge_weights_.setArg(8, bulge_band_[bulge_current_]);
+      bulge_weights_.setArg(9, volume_near_);
+      bulge_weights_.setArg(10, bulge_clearances_);
+      bulge_weights_.setArg(11, bulge_weights_buffer_);
+      bulge_weights_.setArg(12, bulge_chunk_sums_);
+      launch(bulge_weights_, kVolume, volume_vertex_chunks_count_);
+      bulge_fractions_kernel_.setArg(0,
+                                     static_cast<cl_uint>(volume_group_count_));
+      bulge_fractions_kernel_.setArg(1, volume_vertex_chunk_offsets_);
+      bulge_fractions_kernel_.setArg(2, bulge_chunk_sums_);
+      bulge_fractions_kernel_.setArg(3, bulge_missing_);
+      bulge_fractions_kernel_.setArg(4, options_.contact_bulge);
+      bulge_fractions_kernel_.setArg(5, bulge_fractions_);
+      launch(bulge_fractions_kernel_, kVolume, volume_group_count_);
+    } else {
+      context_->queue().enqueueFillBuffer(
+          bulge_fractions_, 0.0f, 0,
+          std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+    }
     restore_apply_.setArg(0, static_cast<cl_uint>(vertex_count_));
     restore_apply_.setArg(1, volume_groups_);
     restore_apply_.setArg(2, restore_weights_buffer_);

@@ -263,13 +263,22 @@ float contactBulgeClearance(float probe_value, float iso) {
   return std::clamp((iso - probe_value) / ISK_BULGE_CLEARANCE_WIDTH, 0.f, 1.f);
 }
 
+// What a group's inward moves cannot give back at volume_restore times
+// their sum (sum w A): the volume left to the contact bulge, 0 where they
+// can. A frame needs the bulge (its band, probe and weights) only where
+// some group has some.
+double contactBulgeMissing(double missing, double weighted,
+                           float volume_restore) {
+  return std::max(missing - double{volume_restore} * weighted, 0.0);
+}
+
 // A group's contact bulge fraction kappa: what the inward moves cannot give
 // back at volume_restore times their sum, over the sum of the bulge
 // weights (sum u A), in [0, limit].
 float contactBulgeFraction(double missing, double weighted,
                            float volume_restore, double bulge_weighted,
                            float limit) {
-  const double rest = missing - double{volume_restore} * weighted;
+  const double rest = contactBulgeMissing(missing, weighted, volume_restore);
   if (!(rest > 0.0) || !(bulge_weighted > 0.0)) return 0.f;
   return static_cast<float>(std::min(rest / bulge_weighted, double{limit}));
 }
@@ -1731,27 +1740,7 @@ void CpuSurfaceTracking::restoreVolume() {
   const bool near_rows = static_cast<int>(groups.near_other.size()) == n;
   const bool bulge =
       options_.contact_bulge > 0.f && options_.contact_bulge_steps > 0;
-  const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
-  std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
-  if (bulge) {
-    // The band around the contacts, one ring per step (Jacobi).
-    for (int v = 0; v < n; ++v)
-      bulge_band_[v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
-    std::vector<float> next(n);
-    for (int k = 0; k < options_.contact_bulge_steps; ++k) {
-      for (int v = 0; v < n; ++v) {
-        const uint32_t begin = rings.offsets[v];
-        next[v] = contactBandStep(
-            bulge_band_[v], static_cast<int>(rings.offsets[v + 1] - begin),
-            [&](int i) { return bulge_band_[rings.neighbours[begin + i]]; },
-            [&](int i) { return mesh_->ring_lengths[begin + i]; },
-            lengths_.bulge_reach[v]);
-      }
-      bulge_band_.swap(next);
-    }
-  }
-  // The inward moves outside contacts and creases, the bulge weights, and
-  // their weighted sums.
+  // The inward moves outside contacts and creases and their weighted sums.
   for (int v = 0; v < n; ++v) {
     const int g = groups.vertex_group[v];
     if (g < 0) continue;
@@ -1774,7 +1763,34 @@ void CpuSurfaceTracking::restoreVolume() {
             static_cast<float>(moving) / static_cast<float>(end - begin);
     }
     weighted[g] += restore_weights_[v] * groups.vertex_area[v];
-    if (bulge && end > begin) {
+  }
+  bool bulge_needed = false;
+  for (int g = 0; g < group_count && bulge && !bulge_needed; ++g)
+    bulge_needed = contactBulgeMissing(missing[g], weighted[g],
+                                       options_.volume_restore) > 0.0;
+  if (bulge_needed) {
+    // The band around the contacts, one ring per step (Jacobi).
+    for (int v = 0; v < n; ++v)
+      bulge_band_[v] = states_[v] == TrackState::kContact ? 1.f : 0.f;
+    std::vector<float> next(n);
+    for (int k = 0; k < options_.contact_bulge_steps; ++k) {
+      for (int v = 0; v < n; ++v) {
+        const uint32_t begin = rings.offsets[v];
+        next[v] = contactBandStep(
+            bulge_band_[v], static_cast<int>(rings.offsets[v + 1] - begin),
+            [&](int i) { return bulge_band_[rings.neighbours[begin + i]]; },
+            [&](int i) { return mesh_->ring_lengths[begin + i]; },
+            lengths_.bulge_reach[v]);
+      }
+      bulge_band_.swap(next);
+    }
+    // The bulge weights, each probed for clearance, and their weighted sums.
+    const ComposedFieldSampler sampler(*fields_, skinning_, composition_);
+    std::vector<Eigen::Vector4f> per_field(std::max(fields_->fieldCount(), 1));
+    for (int v = 0; v < n; ++v) {
+      const int g = groups.vertex_group[v];
+      const uint32_t begin = rings.offsets[v], end = rings.offsets[v + 1];
+      if (g < 0 || end == begin) continue;
       float length = 0.f;
       for (uint32_t i = begin; i < end; ++i) length += mesh_->ring_lengths[i];
       const float mean_length = length / static_cast<float>(end - begin);

@@ -77,7 +77,8 @@ class ClSurfaceTracking {
   void readVolumeFractions(std::vector<float>& out);
   void readRestoreWeights(std::vector<float>& out);
   // The contact bulge's last run: kappa per group, each vertex's band and
-  // weight (#V) as CpuSurfaceTracking's (0 with the bulge off).
+  // weight (#V) as CpuSurfaceTracking's (0 with the bulge off or not
+  // needed).
   void readBulgeFractions(std::vector<float>& out);
   void readBulgeBand(std::vector<float>& out);
   void readBulgeWeights(std::vector<float>& out);
@@ -167,7 +168,7 @@ class ClSurfaceTracking {
       copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
       volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
       restore_correct_, untrack_, bulge_band_init_, bulge_band_grow_,
-      bulge_clearance_;
+      bulge_clearance_, bulge_weights_, bulge_fractions_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, partners_, neighbour_offsets_,
@@ -245,10 +246,11 @@ class ClSurfaceTracking {
       volume_ones_, restore_weights_buffer_;
   // The contact bulge: each vertex's reach (trackingLengths), its band
   // (ping-pong, bulge_band_[bulge_current_] the last), clearance and
-  // weight, the chunks' sums of the weights and the
-  // groups' fractions.
+  // weight, the chunks' sums of the weights, the groups' volume left to the
+  // bulge and fractions, and whether any group needs it (one int).
   cl::Buffer bulge_reaches_, bulge_band_[2], bulge_weights_buffer_,
-      bulge_chunk_sums_, bulge_fractions_, bulge_clearances_;
+      bulge_chunk_sums_, bulge_fractions_, bulge_clearances_, bulge_missing_,
+      bulge_needed_;
   int bulge_current_ = 0;
   std::vector<std::pair<Stage, cl::Event>> events_;
   TrackingStageTimes times_;

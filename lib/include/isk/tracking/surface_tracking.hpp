@@ -596,7 +596,9 @@ class CpuSurfaceTracking {
   }
   const std::vector<float>& restoreWeights() const { return restore_weights_; }
   // The contact bulge's last run (after restoreVolume()): kappa per group
-  // and each vertex's band b and weight u (#V).
+  // and each vertex's band b and weight u (#V); all 0 on a frame where no
+  // group misses more volume than its inward moves give back (the band and
+  // the probe are skipped).
   const std::vector<float>& bulgeFractions() const { return bulge_fractions_; }
   const std::vector<float>& bulgeBand() const { return bulge_band_; }
   const std::vector<float>& bulgeWeights() const { return bulge_weights_; }
