@@ -428,7 +428,10 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
 // cos(contact angle), tolerance and contact_entry (field units); step_limits per
 // vertex (isk::trackingLengths): the largest move and the smallest
 // |grad f| (model units); then ISK_TRACKING_PARAMS.
-// prev_gradients.w: 0 unset, 1 set, 2 marching to a contact.
+// prev_gradients.w: 0 unset, 1 set, 2 marching to a contact. rest_creases:
+// per vertex an index into crease_shifts, -1 none (TrackingMesh::
+// rest_crease); crease_shifts: per rest crease pair of the pose, 1 while
+// its joints turned by less than rest_crease_degrees (restCreaseShifts).
 __kernel void track_project(const uint march_count, __global float* positions,
                             __global const float* iso_values,
                             __global uchar* states,
@@ -439,7 +442,9 @@ __kernel void track_project(const uint march_count, __global float* positions,
                             ISK_COMPOSITION_PARAMS,
                             __global float4* relax_frames,
                             __global float* positions_other,
-                            __global const float2* home_floors) {
+                            __global const float2* home_floors,
+                            __global const int* rest_creases,
+                            __global const int* crease_shifts) {
   // Work-item v marches vertex v: the device's order puts the tracked
   // vertices first (march_count of them), by home field and rest locality.
   const uint v = get_global_id(0);
@@ -455,6 +460,10 @@ __kernel void track_project(const uint march_count, __global float* positions,
   const float margin = home >= 0 ? home_margins[v] : 0.0f;
   // The other part's floor and the home field's minimum of the contact march.
   const float2 home_floor = home >= 0 ? home_floors[v] : (float2)(0.0f, 0.0f);
+  // On a rest crease whose two joints turned by less than
+  // rest_crease_degrees: no march to a contact (the crease shifts).
+  const int rest_crease = home >= 0 ? rest_creases[v] : -1;
+  const bool crease_shifting = rest_crease >= 0 && crease_shifts[rest_crease];
   // Without the contact by home field the other parts' value is not used.
   const float other_slack = home >= 0 ? margin + step_params.z : INFINITY;
   const float2 limits = step_limits[v];
@@ -475,6 +484,9 @@ __kernel void track_project(const uint march_count, __global float* positions,
     float entered = 0.0f;  // how far another part's field exceeds home
     if (home >= 0) {
       entered = other.x - h.x - margin;
+      if (crease_shifting && prev.w != ISK_GRADIENT_TO_CONTACT &&
+          h.x >= home_floor.y)
+        entered = 0.0f;
       const int march = march_to_contact(
           &x, &prev, &frame, sample.x, iso, h, other, entered, home_floor.x,
           home_floor.y,

@@ -171,6 +171,15 @@ TrackingMesh concatenateTrackingMeshes(
         pair.joint_b += joint0;
         out.partner_pairs.push_back(pair);
       }
+      shift(m.rest_crease, static_cast<int>(out.rest_crease_pairs.size()),
+            out.rest_crease);
+      for (TrackingMesh::CreasePair pair : m.rest_crease_pairs) {
+        pair.home_field += field0;
+        pair.other_field += field0;
+        pair.home_joint += joint0;
+        pair.other_joint += joint0;
+        out.rest_crease_pairs.push_back(pair);
+      }
       append(m.ring_lengths, out.ring_lengths);
       out.triangles.middleRows(f0, f) = m.triangles.array() + v0;
       const uint32_t adjacency0 =

@@ -19,12 +19,13 @@ inline std::shared_ptr<const ImplicitFields> buildSkinnerFields(
 }
 
 // TrackingMesh::build, with the dislocation guard's candidates from the
-// rig's weights.
+// rig's weights (and the rest creases they blend dropped).
 inline TrackingMesh buildSkinnerTrackingMesh(const Rig& rig,
                                              const ImplicitFields& fields) {
   TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
   mesh.dislocation_candidates =
       dislocationCandidates(rig, fields.partition, mesh.rings.representative);
+  dropBlendedRestCreases(&mesh);
   return mesh;
 }
 

@@ -196,6 +196,14 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "where skinning put it (1: no such test)")
           ->check(CLI::Range(0.0, 1.0))
           ->capture_default_str(),
+      app.add_option("--rest-crease-angle", tracking.rest_crease_degrees,
+                     "implicit: a vertex lying at rest on the surface of a "
+                     "part the skeleton does not link to its own does not "
+                     "march to a contact while the two joints have turned by "
+                     "less than this (degrees) relative to each other: the "
+                     "crease shifts (0: off)")
+          ->check(CLI::Range(0.0, 180.0))
+          ->capture_default_str(),
       app.add_option("--blend-contact-angle", tracking.blend_contact_degrees,
                      "implicit: the joint angle (degrees) from which the two "
                      "fields of a blend meet in contact")

@@ -130,6 +130,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"contact_entry", t.contact_entry},
           {"contact_home_slack", t.contact_home_slack},
           {"contact_home_reach", t.contact_home_reach},
+          {"rest_crease_degrees", t.rest_crease_degrees},
           {"blend_contact_degrees", t.blend_contact_degrees},
           {"beta_diffusion", t.beta_diffusion},
           {"smoothing_steps", t.smoothing_steps},

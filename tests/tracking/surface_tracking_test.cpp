@@ -1963,6 +1963,193 @@ TEST(SurfaceTracking, LegBentTo150DegreesAgainstDqs) {
   }
 }
 
+// The cylinder with its second bone unlinked from the first (a second
+// root, as the fox's ears hang from its nose, not its head): the
+// composition does not pair the two bones' fields, so the ring where their
+// parts meet at rest lies on both surfaces -- a rest crease.
+// `blend_width`: the weights' blend around the joint, in bone lengths.
+test::RigWithFields makeUnlinkedCylinder(float blend_width) {
+  CylinderRigOptions options;
+  options.rings = 100;
+  options.segments = 40;
+  options.blend_width = blend_width;
+  Rig rig = makeCylinderRig(options);
+  Joint& joint = rig.skeleton.joints.at(rig.skeleton.find("bone1"));
+  joint.parent = -1;
+  joint.rest_local =
+      rig.skeleton.root_parent.inverse() * joint.inverse_bind.inverse();
+  return test::withDefaultFields(std::move(rig));
+}
+const test::RigWithFields& unlinkedCylinder() {
+  static const test::RigWithFields cylinder =
+      makeUnlinkedCylinder(CylinderRigOptions().blend_width);
+  return cylinder;
+}
+
+int restCreaseVertices(const TrackingMesh& mesh) {
+  return static_cast<int>(std::count_if(mesh.rest_crease.begin(),
+                                        mesh.rest_crease.end(),
+                                        [](int c) { return c >= 0; }));
+}
+
+TEST(TrackingMesh, RestCreasesLieWhereUnlinkedPartsMeet) {
+  const test::RigWithFields& c = unlinkedCylinder();
+  const TrackingMesh mesh = TrackingMesh::build(c.rig.mesh, *c.fields);
+  // The two bones' fields, on one side of the ring or both.
+  const int field0 =
+      c.fields->grids.field_of_joint.at(c.rig.skeleton.find("bone0"));
+  const int field1 =
+      c.fields->grids.field_of_joint.at(c.rig.skeleton.find("bone1"));
+  ASSERT_GE(mesh.rest_crease_pairs.size(), 1u);
+  ASSERT_LE(mesh.rest_crease_pairs.size(), 2u);
+  for (const TrackingMesh::CreasePair& pair : mesh.rest_crease_pairs) {
+    EXPECT_TRUE((pair.home_field == field0 && pair.other_field == field1) ||
+                (pair.home_field == field1 && pair.other_field == field0));
+    EXPECT_EQ(pair.home_joint, c.fields->grids.grids[pair.home_field].joint);
+    EXPECT_EQ(pair.other_joint, c.fields->grids.grids[pair.other_field].joint);
+  }
+  std::cout << "[ rest crease ] " << restCreaseVertices(mesh)
+            << " vertices of the unlinked cylinder's " << mesh.trackedCount()
+            << " tracked\n";
+  EXPECT_GT(restCreaseVertices(mesh), 0);
+  // On both surfaces at rest, near the joint (x = 4).
+  const ComposedFieldSampler sampler(
+      c.fields->grids,
+      TransformList(c.rig.skeleton.jointCount(), Eigen::Affine3f::Identity()),
+      &c.fields->composition);
+  std::vector<Eigen::Vector4f> per_field(c.fields->grids.fieldCount());
+  for (int v = 0; v < mesh.vertexCount(); ++v) {
+    if (mesh.rest_crease[v] < 0) continue;
+    const TrackingMesh::CreasePair& pair =
+        mesh.rest_crease_pairs[mesh.rest_crease[v]];
+    EXPECT_EQ(pair.home_field, mesh.home_field[v]);
+    sampler.sample(c.rig.mesh.positions.row(v).transpose(), per_field.data());
+    EXPECT_GE(per_field[pair.other_field][0],
+              mesh.iso_values[v] - TrackingMesh::kRestCreaseReach)
+        << "vertex " << v;
+    EXPECT_NEAR(c.rig.mesh.positions(v, 0), 4.f, 1.f) << "vertex " << v;
+  }
+  // Linked parts meet at a joint of the composition: no rest crease.
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const TrackingMesh linked =
+        TrackingMesh::build(test::rigNamed(name).mesh, *sharedFields(name));
+    EXPECT_EQ(restCreaseVertices(linked), 0);
+    EXPECT_TRUE(linked.rest_crease_pairs.empty());
+  }
+}
+
+// dropBlendedRestCreases on `rig`: a pair keeps its vertices unless more
+// than kBlendedRestCrease of them are dislocation candidates of its other
+// joint. Returns the rest crease vertices kept.
+int checkBlendedRestCreases(const Rig& rig, const ImplicitFields& fields) {
+  TrackingMesh mesh = TrackingMesh::build(rig.mesh, fields);
+  mesh.dislocation_candidates =
+      dislocationCandidates(rig, fields.partition, mesh.rings.representative);
+  const size_t pairs = mesh.rest_crease_pairs.size();
+  std::vector<int> total(pairs, 0), blended(pairs, 0);
+  for (const int crease : mesh.rest_crease)
+    if (crease >= 0) ++total[crease];
+  for (const DislocationCandidate& c : mesh.dislocation_candidates) {
+    const int crease = mesh.rest_crease[c.vertex];
+    if (crease >= 0 &&
+        mesh.rest_crease_pairs[crease].other_joint == c.other_joint)
+      ++blended[crease];
+  }
+  const std::vector<int> before = mesh.rest_crease;
+  dropBlendedRestCreases(&mesh);
+  for (int v = 0; v < mesh.vertexCount(); ++v) {
+    if (before[v] < 0) {
+      EXPECT_EQ(mesh.rest_crease[v], -1);
+      continue;
+    }
+    const bool drop =
+        blended[before[v]] > kBlendedRestCrease * total[before[v]];
+    EXPECT_EQ(mesh.rest_crease[v], drop ? -1 : before[v]) << "vertex " << v;
+  }
+  return restCreaseVertices(mesh);
+}
+
+TEST(TrackingMesh, BlendedRestCreasesAreDropped) {
+  // The unlinked cylinder's weights blend the two bones over a quarter of a
+  // bone's length each side of the joint: every crease vertex is weighted
+  // to the other bone.
+  const test::RigWithFields& c = unlinkedCylinder();
+  EXPECT_EQ(checkBlendedRestCreases(c.rig, *c.fields), 0);
+  // Blended over a narrower band than the crease, it keeps some.
+  const test::RigWithFields narrow = makeUnlinkedCylinder(0.02f);
+  EXPECT_GT(checkBlendedRestCreases(narrow.rig, *narrow.fields), 0);
+}
+
+TEST(TrackingMesh, BlendedRestCreasesAreDroppedOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("blended rest creases");
+  // anim_test.x's tube blends its two chains all along their crease; the
+  // fox's forehead is weighted to its ears and its head, but not all along.
+  EXPECT_EQ(checkBlendedRestCreases(test::rigNamed("anim_test.x"),
+                                    test::implicitFieldsOf("anim_test.x")),
+            0);
+  EXPECT_GT(
+      checkBlendedRestCreases(test::rigNamed("fox-animations.glb"),
+                              test::implicitFieldsOf("fox-animations.glb")),
+      100);
+}
+
+TEST(SurfaceTracking, RestCreasesShiftWithoutContact) {
+  const test::RigWithFields& c = unlinkedCylinder();
+  const TrackingMesh mesh = TrackingMesh::build(c.rig.mesh, *c.fields);
+  const int joint = c.rig.skeleton.find("bone1");
+  const float diagonal = c.rig.boundingBoxDiagonal();
+  // Tracked positions at the cylinder's second bone turned by `degrees`,
+  // and the vertices of the rest crease that end at a contact or crease
+  // and their largest distance from DQS.
+  struct Result {
+    Matrix3Xf positions;
+    int contacts = 0;
+    float distance = 0;
+  };
+  auto track = [&](float degrees, float rest_crease_degrees) {
+    const TransformList pose = bendAt(c.rig, joint, degrees);
+    const Matrix3Xf skinned =
+        geometric(c.rig, SkinningMethod::kDualQuaternion, pose);
+    CpuSkinning s(c.rig.mesh, c.rig.weights, c.rig.skeleton.jointCount());
+    s.run(SkinningMethod::kDualQuaternion, pose, true);
+    SurfaceTrackingOptions options;
+    options.rest_crease_degrees = rest_crease_degrees;
+    CpuSurfaceTracking tracking(c.fields->grids, &c.fields->composition, mesh,
+                                options);
+    tracking.begin(pose, skinned, s.normals());
+    for (int r = 0; r < options.rounds; ++r) {
+      tracking.project(options.projection_steps);
+      tracking.relax();
+    }
+    Result out;
+    out.positions = tracking.positions();
+    for (int v = 0; v < mesh.vertexCount(); ++v) {
+      if (mesh.rest_crease[v] < 0) continue;
+      const TrackState state = tracking.states()[v];
+      out.contacts +=
+          state == TrackState::kContact || state == TrackState::kCrease;
+      out.distance =
+          std::max(out.distance,
+                   (out.positions.row(v) - skinned.row(v)).norm() / diagonal);
+    }
+    return out;
+  };
+  // Turned by 15 degrees: the crease shifts. Taken for a contact, its
+  // vertices march to where the two fields are equal, inside both parts.
+  const Result shifted = track(15, 30), contact = track(15, 0);
+  std::cout << "[ rest crease ] 15 degrees: " << shifted.contacts
+            << " contacts, largest distance from DQS " << shifted.distance
+            << " of the diagonal (as a contact: " << contact.contacts << ", "
+            << contact.distance << ")\n";
+  EXPECT_GT(contact.contacts, 0);
+  EXPECT_EQ(shifted.contacts, 0);
+  EXPECT_LT(shifted.distance, 0.5f * contact.distance);
+  // Turned past rest_crease_degrees: a contact as any other.
+  EXPECT_EQ(track(45, 30).positions, track(45, 0).positions);
+}
+
 TEST(SurfaceTracking, BlendPartnersAreOtherPartsFromTheBlendContactAngle) {
   // The blend shapes its joint's fold below blend_contact_degrees (no
   // contact between its two fields: 45 by default, 90 here too); from it on
@@ -2666,6 +2853,15 @@ TEST(ClSurfaceTracking, StagesNearAnotherComponentMatchTheReference) {
   checkStages(rig,
               std::make_shared<const ImplicitFields>(buildImplicitFields(rig)),
               bendAt(rig, rig.skeleton.find("elbow"), 120));
+}
+
+TEST(ClSurfaceTracking, RestCreasesMatchTheReference) {
+  const test::RigWithFields& c = unlinkedCylinder();
+  const int joint = c.rig.skeleton.find("bone1");
+  for (const float degrees : {15.f, 45.f}) {
+    SCOPED_TRACE(degrees);
+    checkStages(c.rig, c.fields, bendAt(c.rig, joint, degrees));
+  }
 }
 
 TEST(ClSurfaceTracking, PerVertexLengthsMatchTheReference) {

@@ -53,7 +53,8 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
       vertex_count_(mesh.vertexCount()) {
   options.validate().throwIfFailed("SurfaceTrackingOptions");
   if (mesh.rings.vertexCount() != vertex_count_ ||
-      mesh.relaxation.rules.size() != mesh.iso_values.size())
+      mesh.relaxation.rules.size() != mesh.iso_values.size() ||
+      mesh.rest_crease.size() != mesh.iso_values.size())
     throw Error(ErrorCode::kInvalidArgument,
                 "ClSurfaceTracking: the tracking mesh is inconsistent (built "
                 "by TrackingMesh::build?)");
@@ -135,6 +136,7 @@ void ClSurfaceTracking::uploadLayout(
   home_fields_ = uploadReadOnly(*context_, layout.home_fields, &bytes_);
   home_margins_ = uploadReadOnly(*context_, layout.home_margins, &bytes_);
   home_floors_ = uploadReadOnly(*context_, layout.home_floors, &bytes_);
+  rest_creases_ = uploadReadOnly(*context_, layout.rest_creases, &bytes_);
   step_limits_ = uploadReadOnly(*context_, layout.step_limits, &bytes_);
   ring_offsets_ = uploadReadOnly(*context_, layout.ring_offsets, &bytes_);
   ring_neighbours_ = uploadReadOnly(*context_, layout.ring_neighbours, &bytes_);
@@ -184,6 +186,7 @@ void ClSurfaceTracking::allocateBroadPhase(const TrackingMesh& mesh) {
             " fields");
   };
   partners_ = int_buffer(fields * TrackingMesh::kMaxPartners);
+  crease_shifts_ = int_buffer(mesh.rest_crease_pairs.size());
   // Worst cases: every pair in every neighbourhood. The cell lists'
   // entries grow with the poses (begin()).
   const size_t cells = static_cast<size_t>(cells_per_axis_);
@@ -480,6 +483,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     fields_->setPose(skinning);  // validates the pose
     // Kept in a member: the non-blocking write reads it until it is done.
     partners_staging_ = activePartners(*mesh_, skinning, options_);
+    crease_shifts_staging_ = restCreaseShifts(*mesh_, skinning, options_);
     neighbourhoods_ = fieldNeighbourhoods(
         *mesh_, fields_->layout(), fields_->posedToBone(), partners_staging_);
     if (detail::tuningOf(options_).field_neighbourhoods &&
@@ -509,6 +513,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
                                              v.size() * sizeof(int), v.data());
     };
     write(partners_, partners_staging_);
+    write(crease_shifts_, crease_shifts_staging_);
     write(neighbour_offsets_, neighbourhoods_.cell_offsets);
     write(neighbour_entries_, neighbourhoods_.cell_entries);
     write(neighbour_pair_offsets_, neighbourhoods_.pair_offsets);
@@ -591,6 +596,8 @@ void ClSurfaceTracking::project(int steps) {
     project_.setArg(ISK_PROJECT_ARG_RELAX_FRAMES, relax_frames_);
     project_.setArg(ISK_PROJECT_ARG_OTHER_POSITIONS, positions_[1 - current_]);
     project_.setArg(ISK_PROJECT_ARG_HOME_FLOORS, home_floors_);
+    project_.setArg(ISK_PROJECT_ARG_REST_CREASES, rest_creases_);
+    project_.setArg(ISK_PROJECT_ARG_CREASE_SHIFTS, crease_shifts_);
     launch(project_, kProjection, march_count_);
   } catch (const cl::Error& e) {
     throwClError(

@@ -51,6 +51,7 @@ void perVertexData(const TrackingMesh& mesh,
   for (size_t k = 0; k < out->kinds.size(); ++k)
     out->kinds[k] = static_cast<uint8_t>(mesh.rings.kinds[order[k]]);
   out->home_fields = permuted(mesh.home_field, order);
+  out->rest_creases = permuted(mesh.rest_crease, order);
   out->home_margins = permuted(mesh.home_margin, order);
   out->home_floors.resize(2 * static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) {

@@ -28,6 +28,7 @@ struct TrackingDeviceLayout {
   std::vector<float> iso_values, home_margins;
   std::vector<float> home_floors;  // #slots by 2: homeFloor, homeMinimum
   std::vector<int> home_fields;
+  std::vector<int> rest_creases;      // TrackingMesh::rest_crease, by slot
   std::vector<uint8_t> rules, kinds;  // RelaxationRule, RingKind
   std::vector<float> step_limits;     // 2 per vertex: max step, min gradient
   std::vector<float> smoothing_radii;

@@ -393,6 +393,9 @@ Validation SurfaceTrackingOptions::validate() const {
   if (!(contact_home_reach >= 0 && contact_home_reach <= 1))
     return bad("contact_home_reach " + std::to_string(contact_home_reach) +
                ": expected field units in [0, 1]");
+  if (!(rest_crease_degrees >= 0 && rest_crease_degrees <= 180))
+    return bad("rest_crease_degrees " + std::to_string(rest_crease_degrees) +
+               ": expected degrees in [0, 180]");
   if (!(volume_restore >= 0 && volume_restore <= 3))
     return bad("volume_restore " + std::to_string(volume_restore) +
                ": expected a fraction in [0, 3]");
@@ -556,12 +559,14 @@ std::vector<TrackingMesh::PartnerPair> partnerPairs(
 // far the other parts' fields exceed it at rest, where they already do) and
 // its part's surface value.
 void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
-                          TrackingMesh* out_mesh) {
+                          TrackingMesh* out_mesh,
+                          std::vector<int>* rest_other_field) {
   TrackingMesh& out = *out_mesh;
   const int vertex_count = mesh.vertexCount();
   const int field_count = out.field_count;
   out.home_field.assign(vertex_count, -1);
   out.home_margin.assign(vertex_count, 0.f);
+  rest_other_field->assign(vertex_count, -1);
   const std::vector<int>& vertex_joint = fields.partition.vertex_joint;
   if (static_cast<int>(vertex_joint.size()) == vertex_count &&
       field_count > 0) {
@@ -583,6 +588,14 @@ void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
       sampler.sample(mesh.positions.row(v).transpose(), per_field.data());
       const HomeSamples home = homeSamples(out, nullptr, v, per_field.data());
       out.home_margin[v] = std::max(0.f, home.other[0] - home.home[0]);
+      // The rest crease's other part: the field homeSamples took.
+      if (out.iso_values[v] > 0 &&
+          home.other[0] >= out.iso_values[v] - TrackingMesh::kRestCreaseReach)
+        for (int i = 0; i < field_count; ++i)
+          if (i != out.home_field[v] && per_field[i][0] == home.other[0]) {
+            (*rest_other_field)[v] = i;
+            break;
+          }
     }
   }
   // Each part's surface value: the median of its tracked vertices' iso
@@ -607,6 +620,45 @@ void homeFieldsAndMargins(const Mesh& mesh, const ImplicitFields& fields,
   for (int v = 0; v < vertex_count; ++v)
     if (out.home_field[v] >= 0 && out.home_field[v] < field_count)
       out.home_surface[v] = median[out.home_field[v]];
+}
+
+// TrackingMesh::rest_crease and rest_crease_pairs from each vertex's rest
+// other field (homeFieldsAndMargins): kept where the composition does not
+// pair the two fields and the vertex is in a volume group, away from other
+// components (volume_groups must be built).
+void restCreases(const ImplicitFields& fields,
+                 const std::vector<int>& rest_other_field,
+                 TrackingMesh* out_mesh) {
+  TrackingMesh& out = *out_mesh;
+  const int vertex_count = static_cast<int>(out.iso_values.size());
+  out.rest_crease.assign(vertex_count, -1);
+  out.rest_crease_pairs.clear();
+  if (static_cast<int>(rest_other_field.size()) != vertex_count) return;
+  const TrackingMesh::VolumeGroups& groups = out.volume_groups;
+  std::map<std::pair<int, int>, int> pair_index;
+  for (int v = 0; v < vertex_count; ++v) {
+    const int h = out.home_field[v], o = rest_other_field[v];
+    if (h < 0 || o < 0 ||
+        static_cast<int>(groups.vertex_group.size()) != vertex_count ||
+        groups.vertex_group[v] < 0 || groups.near_other[v])
+      continue;
+    bool paired = false;
+    for (const FieldPair& pair : fields.composition.pairs)
+      paired = paired || (pair.field_a == h && pair.field_b == o) ||
+               (pair.field_a == o && pair.field_b == h);
+    if (paired) continue;
+    const auto [it, added] = pair_index.try_emplace(
+        {h, o}, static_cast<int>(out.rest_crease_pairs.size()));
+    if (added) {
+      TrackingMesh::CreasePair crease;
+      crease.home_field = h;
+      crease.other_field = o;
+      crease.home_joint = fields.grids.grids.at(h).joint;
+      crease.other_joint = fields.grids.grids.at(o).joint;
+      out.rest_crease_pairs.push_back(crease);
+    }
+    out.rest_crease[v] = it->second;
+  }
 }
 
 // 21 bits spread to every third bit, for a Morton code.
@@ -836,9 +888,11 @@ TrackingMesh TrackingMesh::build(const Mesh& mesh,
   out.normal_adjacency = weldedNormalAdjacency(mesh, out.rings);
   out.field_count = fields.grids.fieldCount();
   out.partner_pairs = partnerPairs(fields);
-  homeFieldsAndMargins(mesh, fields, &out);
+  std::vector<int> rest_other_field;
+  homeFieldsAndMargins(mesh, fields, &out, &rest_other_field);
   out.march_order = marchOrder(mesh, out);
   out.volume_groups = volumeGroups(mesh, out.rings, fields.partition);
+  restCreases(fields, rest_other_field, &out);
   return out;
 }
 
@@ -867,6 +921,52 @@ TrackingLengths trackingLengths(const TrackingMesh& mesh,
   return out;
 }
 
+namespace {
+
+// The angle (radians) of the rotation between joints a's and b's skinning
+// transforms: how far they turned relative to each other from the bind
+// pose (pairJointAngles' measure).
+float relativeTurn(const TransformList& skinning, int a, int b) {
+  const Eigen::Quaternionf qa(skinning.at(a).rotation());
+  const Eigen::Quaternionf qb(skinning.at(b).rotation());
+  const Eigen::Quaternionf relative = qa.conjugate() * qb;
+  return 2.f * std::atan2(relative.vec().norm(), std::abs(relative.w()));
+}
+
+}  // namespace
+
+void dropBlendedRestCreases(TrackingMesh* mesh) {
+  const size_t pairs = mesh->rest_crease_pairs.size();
+  std::vector<int> total(pairs, 0), blended(pairs, 0);
+  for (const int crease : mesh->rest_crease)
+    if (crease >= 0) ++total[crease];
+  for (const DislocationCandidate& c : mesh->dislocation_candidates) {
+    if (c.vertex < 0 || c.vertex >= static_cast<int>(mesh->rest_crease.size()))
+      continue;
+    const int crease = mesh->rest_crease[c.vertex];
+    if (crease >= 0 &&
+        mesh->rest_crease_pairs[crease].other_joint == c.other_joint)
+      ++blended[crease];
+  }
+  for (int& crease : mesh->rest_crease)
+    if (crease >= 0 && blended[crease] > kBlendedRestCrease * total[crease])
+      crease = -1;
+}
+
+std::vector<int> restCreaseShifts(const TrackingMesh& mesh,
+                                  const TransformList& skinning,
+                                  const SurfaceTrackingOptions& options) {
+  const float limit =
+      options.rest_crease_degrees * static_cast<float>(M_PI) / 180.f;
+  std::vector<int> shifts(mesh.rest_crease_pairs.size(), 0);
+  for (size_t k = 0; k < shifts.size(); ++k) {
+    const TrackingMesh::CreasePair& pair = mesh.rest_crease_pairs[k];
+    shifts[k] =
+        relativeTurn(skinning, pair.home_joint, pair.other_joint) < limit;
+  }
+  return shifts;
+}
+
 std::vector<int> activePartners(const TrackingMesh& mesh,
                                 const TransformList& skinning,
                                 const SurfaceTrackingOptions& options) {
@@ -886,12 +986,7 @@ std::vector<int> activePartners(const TrackingMesh& mesh,
   for (const TrackingMesh::PartnerPair& pair : mesh.partner_pairs) {
     if (!pair.blend) continue;
     // The joint's rotation from its bind pose, as pairJointAngles has it.
-    const Eigen::Quaternionf a(skinning.at(pair.joint_a).rotation());
-    const Eigen::Quaternionf b(skinning.at(pair.joint_b).rotation());
-    const Eigen::Quaternionf relative = a.conjugate() * b;
-    const float angle =
-        2.f * std::atan2(relative.vec().norm(), std::abs(relative.w()));
-    if (!(angle < limit)) continue;
+    if (!(relativeTurn(skinning, pair.joint_a, pair.joint_b) < limit)) continue;
     add(pair.field_a, pair.field_b);
     add(pair.field_b, pair.field_a);
   }
@@ -1224,7 +1319,8 @@ CpuSurfaceTracking::CpuSurfaceTracking(const FieldGridSet& fields,
       options_(options) {
   options.validate().throwIfFailed("SurfaceTrackingOptions");
   if (mesh.rings.vertexCount() != mesh.vertexCount() ||
-      mesh.relaxation.rules.size() != mesh.iso_values.size())
+      mesh.relaxation.rules.size() != mesh.iso_values.size() ||
+      mesh.rest_crease.size() != mesh.iso_values.size())
     throw Error(ErrorCode::kInvalidArgument,
                 "CpuSurfaceTracking: the tracking mesh is inconsistent (built "
                 "by TrackingMesh::build?)");
@@ -1263,6 +1359,7 @@ void CpuSurfaceTracking::begin(const TransformList& skinning,
   if (start) last_states = states_;
   skinning_ = skinning;
   partners_ = activePartners(*mesh_, skinning, options_);
+  crease_shifts_ = restCreaseShifts(*mesh_, skinning, options_);
   neighbourhoods_ = fieldNeighbourhoods(
       *mesh_, *fields_, fieldTransforms(*fields_, skinning), partners_);
   positions_ = skinned_positions;
@@ -1338,6 +1435,14 @@ Eigen::Vector4f CpuSurfaceTracking::sampleAt(
   return sample;
 }
 
+bool CpuSurfaceTracking::onShiftingRestCrease(int v,
+                                              const HomeSamples& home) const {
+  const int crease = mesh_->rest_crease[v];
+  return crease >= 0 && crease_shifts_[crease] &&
+         prev_(v, 3) != ISK_GRADIENT_TO_CONTACT &&
+         home.home[0] >= homeMinimum(*mesh_, v, options_);
+}
+
 void CpuSurfaceTracking::project(int steps) {
   checkBegun("project");
   const auto start = std::chrono::steady_clock::now();
@@ -1366,6 +1471,7 @@ void CpuSurfaceTracking::project(int steps) {
       float entered = 0.f;  // how far another part's field exceeds home
       if (options_.home_contact && mesh_->home_field[v] >= 0) {
         entered = home.other[0] - home.home[0] - mesh_->home_margin[v];
+        if (onShiftingRestCrease(v, home)) entered = 0.f;
         Eigen::Vector4f frame = relax_frames_.row(v).transpose();
         const int march = marchToContact(
             &x, &prev_(v, 3), &frame, f, iso, home, entered,

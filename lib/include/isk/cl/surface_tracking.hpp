@@ -143,9 +143,10 @@ class ClSurfaceTracking {
   std::shared_ptr<ClContext> context_;
   SurfaceTrackingOptions options_;
   const TrackingMesh* mesh_;
-  std::vector<int> partners_staging_;    // activePartners of the last pose
-  FieldNeighbourhoods neighbourhoods_;   // of the last pose (staging)
-  size_t neighbour_entry_capacity_ = 0;  // ints in neighbour_entries_
+  std::vector<int> partners_staging_;       // activePartners of the last pose
+  std::vector<int> crease_shifts_staging_;  // restCreaseShifts of it
+  FieldNeighbourhoods neighbourhoods_;      // of the last pose (staging)
+  size_t neighbour_entry_capacity_ = 0;     // ints in neighbour_entries_
   // Cells per axis of the neighbourhoods' split: kCpuCellsPerAxis on a CPU
   // device, 1 (no split) on others.
   static constexpr int kCpuCellsPerAxis = 4;
@@ -171,10 +172,10 @@ class ClSurfaceTracking {
       bulge_clearance_, bulge_weights_, bulge_fractions_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
-      home_margins_, home_floors_, partners_, neighbour_offsets_,
-      neighbour_entries_, neighbour_pair_offsets_, neighbour_pairs_,
-      ring_offsets_, ring_neighbours_, ring_weights_, ring_lengths_,
-      normal_offsets_, normal_triangles_;
+      home_margins_, home_floors_, rest_creases_, crease_shifts_, partners_,
+      neighbour_offsets_, neighbour_entries_, neighbour_pair_offsets_,
+      neighbour_pairs_, ring_offsets_, ring_neighbours_, ring_weights_,
+      ring_lengths_, normal_offsets_, normal_triangles_;
   // The mesh's triangles (#F by 3) and their cross products of the frame.
   int triangle_count_ = 0;
   cl::Buffer triangles_, triangle_normals_;

@@ -218,6 +218,15 @@ struct SurfaceTrackingOptions {
   // and the paper's march send it out through the far side
   // (docs/algorithm.md). 1: no such test.
   float contact_home_reach = 0.1f;
+  // Rest creases (TrackingMesh::rest_crease): a vertex that lies at rest on
+  // the surface of a part the composition does not pair with its own (the
+  // skeleton does not link the two bones) does not start the march to a
+  // contact while the two joints have turned by less than this (degrees)
+  // relative to each other from the bind pose: the crease between the two
+  // surfaces shifts, and the vertex marches to its iso value as in the
+  // paper instead of to the contact surface, which lies inside both parts
+  // (docs/algorithm.md). 0: off.
+  float rest_crease_degrees = 30.f;
   // Volume restoration (see above): the largest fraction of a vertex's
   // inward move from its skinned position given back, in [0, 3] (0: off;
   // above 1 a vertex may go past its skinned position, outward, where the
@@ -327,6 +336,21 @@ struct TrackingMesh {
   // is the vertex's (its part's surface value), 0 where it has none.
   std::vector<float> home_surface;
   std::vector<PartnerPair> partner_pairs;
+  // Two fields the composition does not pair, meeting at a rest crease.
+  struct CreasePair {
+    int home_field = -1, other_field = -1;  // field indices
+    int home_joint = -1, other_joint = -1;  // their joints
+  };
+  // The rest creases: a tracked vertex lies on one where the largest field
+  // of another part than its own (other_field), one the composition does
+  // not pair with its own, is within kRestCreaseReach of the vertex's iso
+  // value at the bind pose -- the vertex is on both surfaces -- and the
+  // vertex is in a volume group and not near another component
+  // (VolumeGroups::near_other: eyes, a mannequin's pieces keep their
+  // contacts). rest_crease: #V, an index into rest_crease_pairs, -1 none.
+  static constexpr float kRestCreaseReach = 0.01f;
+  std::vector<CreasePair> rest_crease_pairs;
+  std::vector<int> rest_crease;
   int field_count = 0;
   // Rest length of each one-ring edge, aligned with rings.neighbours.
   std::vector<float> ring_lengths;
@@ -413,6 +437,24 @@ TrackingLengths trackingLengths(const TrackingMesh& mesh,
 std::vector<int> activePartners(const TrackingMesh& mesh,
                                 const TransformList& skinning,
                                 const SurfaceTrackingOptions& options);
+
+// Leaves out of mesh->rest_crease the pairs whose crease the skin's weights
+// blend: where more than kBlendedRestCrease of a pair's vertices are
+// dislocation candidates (mesh->dislocation_candidates, weighted at least
+// kDislocationMinWeight) of the pair's other joint, skinning already blends
+// the two parts all along their crease (anim_test.x's tube over two
+// chains), and there the march to a contact keeps its volume.
+constexpr float kBlendedRestCrease = 0.9f;
+void dropBlendedRestCreases(TrackingMesh* mesh);
+
+// Per rest crease pair (TrackingMesh::rest_crease_pairs) at the pose
+// `skinning` (#joints): 1 while its two joints have turned by less than
+// options.rest_crease_degrees relative to each other from the bind pose
+// (the crease shifts: the other part is no contact for the vertices on it),
+// else 0.
+std::vector<int> restCreaseShifts(const TrackingMesh& mesh,
+                                  const TransformList& skinning,
+                                  const SurfaceTrackingOptions& options);
 
 // The exact broad phase of tracking at a pose. Per field h, the fields
 // whose posed support box (a parallelepiped: the grid's box through the
@@ -627,7 +669,13 @@ class CpuSurfaceTracking {
   Matrix3Xf positions_, scratch_, skinned_, fallback_normals_, normals_;
   std::vector<TrackState> states_;
   std::vector<int> partners_;           // activePartners of the frame's pose
+  std::vector<int> crease_shifts_;      // restCreaseShifts of the frame's pose
   FieldNeighbourhoods neighbourhoods_;  // of the frame's pose
+  // Whether vertex v, on a rest crease whose joints turned by less than
+  // rest_crease_degrees, marches to its iso value instead of starting the
+  // march to a contact (its own part's field at least homeMinimum: skin
+  // carried out of its part still stops).
+  bool onShiftingRestCrease(int v, const HomeSamples& home) const;
   // The composed field at x for vertex v (its neighbourhood's fields when x
   // is in its home field's box); per_field: #fields samples, 0 where
   // not sampled.
