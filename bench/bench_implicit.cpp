@@ -255,6 +255,7 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever == "no-value-bounds") tuning.value_bounds = false;
   if (lever == "no-lane-tests") tuning.lane_tests = false;
   if (lever == "no-active-vertices") tuning.active_vertices = false;
+  if (lever == "no-pair-bounds") tuning.pair_bounds = false;
   if (lever == "no-neighbourhood-cells")
     tuning.neighbourhood_cells = 1;  // the whole box
   options.tracking = detail::withTuning(options.tracking, tuning);
@@ -551,9 +552,9 @@ void registerImplicitBenchmarks() {
       for (const char* lever :
            {"all", "no-neighbourhoods", "no-neighbourhood-cells",
             "no-march-order", "no-occupied-cells", "no-value-bounds",
-            "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
-            "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator",
-            "history-tracking"})
+            "no-lane-tests", "no-active-vertices", "no-pair-bounds",
+            "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1", "no-fold-guard",
+            "union-operator", "history-tracking"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

@@ -318,7 +318,7 @@ class Results:
                                  r"no-neighbourhoods|no-neighbourhood-cells|"
                                  r"no-march-order|no-occupied-cells|"
                                  r"no-value-bounds|no-lane-tests|"
-                                 r"no-active-vertices|"
+                                 r"no-active-vertices|no-pair-bounds|"
                                  r"x\d+):(\d+)",
                                  part)
                 if m and int(m.group(2)) not in self.devices:
@@ -746,7 +746,8 @@ def implicit_section(results):
 
 LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
-          "no-lane-tests", "no-active-vertices", "half-grids", "sigma-0.5",
+          "no-lane-tests", "no-active-vertices", "no-pair-bounds",
+          "half-grids", "sigma-0.5",
           "sigma-0.7", "sigma-1", "no-fold-guard", "union-operator",
           "history-tracking")
 
@@ -806,7 +807,11 @@ def levers_section(results):
               "`active_vertices` (the relaxation launches skip the stopped "
               "vertices, the diffusion and Laplacian launches the vertices "
               "out of reach of every contact and crease vertex, instead of "
-              "copying them). "
+              "copying them) and `pair_bounds` (a blend or bulge pair one of "
+              "whose fields the value bounds skipped is composed only where "
+              "its operator's bound over the two fields' values or bounds "
+              "exceeds the composed value so far, instead of sampling that "
+              "field again). "
               "None changes the result (tests compare the frames bit for "
               "bit); 'all' has every switch on. 'half-grids' is the other "
               "way round: every switch on, and the grids rounded to half "

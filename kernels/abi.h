@@ -36,10 +36,12 @@
 #define ISK_NEIGHBOUR_FIELD 0xffff
 // contact_flags, a bit set: the contact by home field on (off: the paper's
 // march only), the field neighbourhoods used (off: every field is sampled),
-// fields skipped by their value bounds.
+// fields skipped by their value bounds, blend and bulge pairs skipped by
+// their operator's bound over those value bounds.
 #define ISK_CONTACT_HOME_FIELD 1
 #define ISK_CONTACT_NEIGHBOURHOODS 2
 #define ISK_CONTACT_VALUE_BOUNDS 4
+#define ISK_CONTACT_PAIR_BOUNDS 8
 
 // --- Volume restoration (tracking/restore_volume.cl) ----------------------
 // The most triangles or vertices of one group a work-item sums.

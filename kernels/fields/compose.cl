@@ -7,9 +7,11 @@
 // tracking/project.cl.
 //
 // Operator tables (isk/fields/composition_operator.hpp), same storage as the fields:
-// T tables of N^3 float4 (G, dG/dx, dG/dy, 0) over (x, y, theta), x the
+// T tables of N^3 float4 (G, dG/dx, dG/dy, w) over (x, y, theta), x the
 // larger field; node (i, j, k) of table t at i + N * (j + N * (k + N * t))
-// (the buffer) or at texel (i, j, t * N + k) (the image, N x N x T*N).
+// (the buffer) or at texel (i, j, t * N + k) (the image, N x N x T*N). w is
+// 0 but at the nodes (i, j, 0), where the host writes G's bound up to them
+// (operator_bound).
 // Composition parameters (six consecutive kernel arguments,
 // ISK_COMPOSITION_PARAMS, bound by ClFieldEvaluation::setCompositionArgs):
 //   operator_data    the tables;
@@ -64,6 +66,28 @@ float3 sample_operator(ISK_OPERATOR_DATA_T operator_data, const int table,
   const size_t nn = (size_t)n;
   return trilinear_nodes(operator_data + (size_t)table * nn * nn * nn, n, u)
       .xyz;
+#endif
+}
+
+// An upper bound of table `table`'s G over x <= x_max, y <= y_max (x the
+// larger field) and every theta: node (i, j, 0)'s fourth component, the
+// largest G of the nodes up to (i, j) (written at upload,
+// field_evaluation.cpp), i and j past the last node trilinear interpolation
+// can weigh.
+float operator_bound(ISK_OPERATOR_DATA_T operator_data, const int table,
+                     const float4 scales, const float x_max,
+                     const float y_max) {
+  const float last = scales.x;
+  const int n = (int)last + 1;
+  const int i = min((int)(clamp(x_max, 0.0f, 1.0f) * last) + 1, n - 1);
+  const int j = min((int)(clamp(y_max, 0.0f, 1.0f) * last) + 1, n - 1);
+#if ISK_FIELDS_IMAGE
+  return read_imagef(operator_data, kTexelSampler, (int4)(i, j, table * n, 0))
+      .w;
+#else
+  const size_t nn = (size_t)n;
+  return operator_data[(size_t)table * nn * nn * nn + (size_t)i + nn * (size_t)j]
+      .w;
 #endif
 }
 

@@ -72,11 +72,14 @@
 // The samples a point's listed fields took, for its blend and bulge pairs
 // (sample_tracking): the same values sample_field_culled gives, so that a
 // pair composes what it would have sampled again. `capacity` 0: none kept.
+// With `keep_bounds` (ISK_CONTACT_PAIR_BOUNDS), a field skipped by its value
+// bound is kept as that bound, negated (samples are never negative).
 #define ISK_PAIR_CACHE 16
 typedef struct {
   uint fields[ISK_PAIR_CACHE];
   float4 samples[ISK_PAIR_CACHE];
   int count, capacity;
+  int keep_bounds;
 } PairCache;
 
 ISK_INLINE void keep_sample(PairCache* cache, const uint field,
@@ -118,8 +121,11 @@ ISK_INLINE void take_listed_field(
     if (bounded && b < 255u) {
       const float bound = (float)b * (1.0f / 255.0f);
       if (bound < fmax(best->x, home_sample.x) &&
-          ((entry & ISK_NEIGHBOUR_PARTNER) || bound <= other_limit))
+          ((entry & ISK_NEIGHBOUR_PARTNER) || bound <= other_limit)) {
+        if (cache->keep_bounds)
+          keep_sample(cache, i, (float4)(-bound, 0.0f, 0.0f, 0.0f));
         return;  // changes nothing (see sample_tracking)
+      }
     }
     __global const float4* p = field_params + ISK_FIELD_PARAM_STRIDE * i;
     const float4 g =
@@ -155,7 +161,10 @@ ISK_INLINE void take_listed_field(
 // field exceed home by more than the tolerance either, the only test that
 // value takes part in outside the march to a contact (where the caller
 // passes bounded = false): such a field is not sampled. The result is the
-// same as sampling it.
+// same as sampling it. With ISK_CONTACT_PAIR_BOUNDS, a blend or bulge pair
+// with such a field is composed only where the operator's bound over the
+// fields' values (the skipped one's bound for its value) exceeds the
+// composed value so far (operator_bound); elsewhere it cannot change it.
 ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
                                   ISK_TRACKING_PARAMS, const float3 x,
                                   const int home, const bool bounded,
@@ -192,6 +201,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     PairCache cache;
     cache.count = 0;
     cache.capacity = pairs_end > pairs_begin ? ISK_PAIR_CACHE : 0;
+    cache.keep_bounds = contact_flags & ISK_CONTACT_PAIR_BOUNDS;
 #if ISK_LANE_TESTS
     // The listed fields' sphere and grid tests eight at a time: the home
     // field's neighbourhood in chunks of 8 lanes (lane_params, the list's
@@ -264,10 +274,30 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
       const uint k = (uint)neighbour_pairs[n];
       if (!(k < pair_count)) continue;
       const int4 pair = pairs[k];
-      const float4 a = pair_sample(ISK_FIELD_ARGS, &cache, (uint)pair.x, x);
-      if (!(a.x > 0.0f)) continue;
-      const float4 b = pair_sample(ISK_FIELD_ARGS, &cache, (uint)pair.y, x);
-      if (!(b.x > 0.0f)) continue;
+      float4 a = pair_sample(ISK_FIELD_ARGS, &cache, (uint)pair.x, x);
+      if (!(a.x > 0.0f) && !(a.x < 0.0f)) continue;
+      float4 b = pair_sample(ISK_FIELD_ARGS, &cache, (uint)pair.y, x);
+      if (!(b.x > 0.0f) && !(b.x < 0.0f)) continue;
+      if (a.x < 0.0f || b.x < 0.0f) {
+        // A field the list skipped by its value bound (kept negated): the
+        // pair cannot raise the composed value where the operator's bound
+        // over the two values or bounds does not exceed it (compose_union
+        // keeps `best` on a tie; 1e-6 covers the trilinear interpolation's
+        // rounding above its largest node). Else the field is sampled, as
+        // pair_sample would have.
+        const float ba = fabs(a.x), bb = fabs(b.x);
+        if (operator_bound(operator_data, pair.z, operator_scales,
+                           fmax(ba, bb), fmin(ba, bb)) + 1e-6f <= best.x)
+          continue;
+        if (a.x < 0.0f)
+          a = sample_field_culled(field_data, field_params, field_cells,
+                                  (uint)pair.x, resolution, x);
+        if (!(a.x > 0.0f)) continue;
+        if (b.x < 0.0f)
+          b = sample_field_culled(field_data, field_params, field_cells,
+                                  (uint)pair.y, resolution, x);
+        if (!(b.x > 0.0f)) continue;
+      }
       best = compose_union(best,
                            compose_pair(ISK_COMPOSITION_ARGS, k, a, b));
     }

@@ -3204,7 +3204,8 @@ TEST(ImplicitSkinner, CharactersShareOneContext) {
 }
 
 // The speed switches (neighbourhoods, march order, occupied cells, value
-// bounds, lane tests, active vertices) change no result: the same frame
+// bounds, lane tests, active vertices, pair bounds) change no result: the
+// same frame
 // with each off, on the CPU reference and on OpenCL. `base`: the tracking
 // options the switches are turned in.
 void checkSpeedSwitches(const Rig& rig,
@@ -3214,7 +3215,7 @@ void checkSpeedSwitches(const Rig& rig,
   struct Switches {
     bool neighbourhoods = true, march_order = true, cells = true, bounds = true;
     int neighbourhood_cells = 0;  // the device's choice (PoCL: 4)
-    bool lanes = true, active = true;
+    bool lanes = true, active = true, pairs = true;
   };
   auto frames = [&](const Switches& on) {
     ImplicitSkinnerOptions options;
@@ -3226,6 +3227,7 @@ void checkSpeedSwitches(const Rig& rig,
     tuning.value_bounds = on.bounds;
     tuning.lane_tests = on.lanes;
     tuning.active_vertices = on.active;
+    tuning.pair_bounds = on.pairs;
     options.tracking = detail::withTuning(base, tuning);
     CpuImplicitSkinner cpu(rig, fields, options);
     cpu.run(pose);
@@ -3247,7 +3249,9 @@ void checkSpeedSwitches(const Rig& rig,
         Switches{true, true, true, true, 1, false},
         Switches{true, true, true, false, 7, false},
         Switches{true, true, true, true, 0, true, false},
-        Switches{true, true, true, true, 1, false, false}}) {
+        Switches{true, true, true, true, 1, false, false},
+        Switches{true, true, true, true, 0, true, true, false},
+        Switches{true, true, true, true, 1, false, true, false}}) {
     SCOPED_TRACE(std::string("neighbourhoods ") +
                  (on.neighbourhoods ? "on" : "off") + ", march order " +
                  (on.march_order ? "on" : "off") + ", occupied cells " +
@@ -3255,7 +3259,8 @@ void checkSpeedSwitches(const Rig& rig,
                  (on.bounds ? "on" : "off") + ", neighbourhood cells " +
                  std::to_string(on.neighbourhood_cells) + ", lane tests " +
                  (on.lanes ? "on" : "off") + ", active vertices " +
-                 (on.active ? "on" : "off"));
+                 (on.active ? "on" : "off") + ", pair bounds " +
+                 (on.pairs ? "on" : "off"));
     const auto other = frames(on);
     const test::RowMismatch cpu =
         test::largestRowDistance(other.first, all.first);

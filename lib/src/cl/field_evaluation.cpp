@@ -18,6 +18,27 @@
 namespace isk {
 namespace {
 
+// Each node (i, j, 0)'s unused fourth component: the largest value G of
+// the table over the nodes (i', j', k) with i' <= i and j' <= j, every k.
+// Trilinear interpolation never exceeds the nodes it weighs, so G at any
+// (x, y, theta) whose nodes lie within i, j is at most that (the
+// projection's pair bound, project.cl).
+void writeOperatorBounds(size_t n, float* table) {
+  std::vector<float> column(n * n, 0.f);
+  for (size_t k = 0; k < n; ++k)
+    for (size_t j = 0; j < n; ++j)
+      for (size_t i = 0; i < n; ++i)
+        column[i + n * j] =
+            std::max(column[i + n * j], table[4 * (i + n * (j + n * k))]);
+  for (size_t j = 0; j < n; ++j)
+    for (size_t i = 0; i < n; ++i) {
+      float m = column[i + n * j];
+      if (i > 0) m = std::max(m, table[4 * ((i - 1) + n * j) + 3]);
+      if (j > 0) m = std::max(m, table[4 * (i + n * (j - 1)) + 3]);
+      table[4 * (i + n * j) + 3] = m;
+    }
+}
+
 constexpr size_t kFloat4 = 4 * sizeof(float);
 
 using detail::roundUp;
@@ -365,10 +386,12 @@ void ClFieldEvaluation::uploadComposition(const Composition* composition) {
   const size_t n = static_cast<size_t>(table_count_ ? table_resolution_ : 2);
   const size_t per_table = 4 * n * n * n;
   std::vector<float> nodes(per_table * std::max(table_count_, 1), 0.f);
-  for (int t = 0; t < table_count_; ++t)
+  for (int t = 0; t < table_count_; ++t) {
     std::copy(composition->tables[t]->nodes.begin(),
               composition->tables[t]->nodes.end(),
               nodes.begin() + per_table * t);
+    writeOperatorBounds(n, nodes.data() + per_table * t);
+  }
   if (storage_ == FieldStorage::kImage)
     operator_image_ =
         cl::Image3D(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,

@@ -374,7 +374,8 @@ void ClSurfaceTracking::setContactArgs(cl::Kernel& kernel,
       (detail::tuningOf(options_).field_neighbourhoods
            ? ISK_CONTACT_NEIGHBOURHOODS
            : 0) |
-      (detail::tuningOf(options_).value_bounds ? ISK_CONTACT_VALUE_BOUNDS : 0);
+      (detail::tuningOf(options_).value_bounds ? ISK_CONTACT_VALUE_BOUNDS : 0) |
+      (detail::tuningOf(options_).pair_bounds ? ISK_CONTACT_PAIR_BOUNDS : 0);
   kernel.setArg(first_index + 8, flags);
   kernel.setArg(first_index + 9, lane_offsets_);
   kernel.setArg(first_index + 10, lane_params_);

@@ -24,6 +24,12 @@ struct TrackingTuning {
   // they can change nothing at the point (cellValueBounds: below the home
   // field's value and the best so far).
   bool value_bounds = true;
+  // OpenCL, projection, with value_bounds: a blend or bulge pair one of
+  // whose fields value_bounds skipped is not composed where its operator's
+  // bound over the two fields' values (or bounds) does not exceed the
+  // composed value so far (the operator table's bound nodes,
+  // field_evaluation.cpp), instead of sampling that field again.
+  bool pair_bounds = true;
   // OpenCL, with field_neighbourhoods: each home field's box cut into this
   // many cells per axis, a vertex sampling only the fields that can be
   // non-zero in its cell (splitNeighbourhoodsIntoCells); 1: the whole box;
