@@ -541,12 +541,12 @@ void registerImplicitBenchmarks() {
     registerCase("Implicit/" + model.name + "/", modelCase(model), true,
                  "opencl", kMinTimeS);
   }
-  // The speed switches, on the 53-field human and the 38k- and 152k-vertex
-  // models.
+  // The speed switches, on the 53-field human, the coarse fox (blend pairs
+  // at most of its joints) and the 38k- and 152k-vertex models.
   for (const Model& model : models()) {
     if (!available(model) ||
-        (model.name != "human-addon" && model.name != "CesiumMan-x16" &&
-         model.name != "CesiumMan-x64"))
+        (model.name != "human-addon" && model.name != "fox" &&
+         model.name != "CesiumMan-x16" && model.name != "CesiumMan-x64"))
       continue;
     for (const ClDeviceInfo& device : devices())
       for (const char* lever :

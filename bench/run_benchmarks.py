@@ -616,8 +616,9 @@ def models_section(results):
     if not counts:
         return []
     lines = ["## Models", "",
-             "The built-in procedural arm, every shared asset "
-             "(`../shared/data`, see its README for credits), and CesiumMan "
+             "The built-in procedural arm, every shared asset with a clip "
+             "(`../shared/data`, see its README for credits; human-female "
+             "has none, quad_skin is a single quad), and CesiumMan "
              "and human-addon subdivided 1-to-4 (`isk::subdivideRig`, skin "
              "weights interpolated; '-xN' is N times the faces). Vertex "
              "counts are after Assimp's vertex split; texture seams stay "
