@@ -262,6 +262,8 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
   if (lever.rfind("sigma-", 0) == 0)
     options.tracking.sigma = std::stof(lever.substr(6));
   if (lever == "no-fold-guard") options.tracking.fold_guard = false;
+  if (lever.rfind("strain-limit-steps-", 0) == 0)
+    options.tracking.strain_limit_steps = std::stoi(lever.substr(19));
   if (lever == "history-tracking")
     options.tracking_mode = TrackingMode::kHistory;
   const Rig& rig = c.rig();
@@ -554,7 +556,7 @@ void registerImplicitBenchmarks() {
             "no-march-order", "no-occupied-cells", "no-value-bounds",
             "no-lane-tests", "no-active-vertices", "no-pair-bounds",
             "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1", "no-fold-guard",
-            "union-operator", "history-tracking"})
+            "strain-limit-steps-16", "union-operator", "history-tracking"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

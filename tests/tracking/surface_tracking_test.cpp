@@ -1963,6 +1963,44 @@ TEST(SurfaceTracking, LegBentTo150DegreesAgainstDqs) {
   }
 }
 
+TEST(SurfaceTracking, StrainLimitStepsLetTheFoldGuardSettleOnTheLegAt150) {
+  // Every joint of the leg bent to 150 degrees (QUALITY.md's leg at 150):
+  // the foot folds back between the shin and the thigh. The fold guard
+  // averages the offsets around the triangles that folded over, a diffusion
+  // that needs more steps than the strain limit alone; cut short at 16
+  // steps it leaves the foot's fine end cap folded onto itself (measured:
+  // 232 new pairs at 16 steps, 142 at the default 32, DQS 428).
+  const Rig& leg = test::rigNamed("leg");
+  const AnimationClip bend =
+      makeBendClip(leg.skeleton, static_cast<float>(150.0 * M_PI / 180.0));
+  const TransformList pose = skinningTransforms(
+      leg.skeleton,
+      globalTransforms(leg.skeleton,
+                       bend.sampleLocal(leg.skeleton, bend.duration)));
+  ImplicitSkinnerOptions short_steps;
+  short_steps.tracking.strain_limit_steps = 16;
+  ASSERT_GT(ImplicitSkinnerOptions().tracking.strain_limit_steps, 16);
+  CpuImplicitSkinner by_default(leg, sharedFields("leg"),
+                                ImplicitSkinnerOptions());
+  CpuImplicitSkinner cut_short(leg, sharedFields("leg"), short_steps);
+  by_default.run(pose);
+  cut_short.run(pose);
+  const FrameMeasures dqs = measureFrame(
+      leg.mesh, geometric(leg, SkinningMethod::kDualQuaternion, pose));
+  const FrameMeasures full = measureFrame(leg.mesh, by_default.positions());
+  const FrameMeasures cut = measureFrame(leg.mesh, cut_short.positions());
+  std::printf(
+      "[ leg, every joint at 150 deg ] new pairs DQS %d, %d steps %d, 16 "
+      "steps %d; strain max %.3f, %.3f, %.3f\n",
+      dqs.new_pairs, ImplicitSkinnerOptions().tracking.strain_limit_steps,
+      full.new_pairs, cut.new_pairs, dqs.strain_max, full.strain_max,
+      cut.strain_max);
+  EXPECT_LE(full.new_pairs, dqs.new_pairs / 2);
+  EXPECT_GT(cut.new_pairs, dqs.new_pairs / 2);
+  EXPECT_LE(full.strain_max, dqs.strain_max + 0.1f);
+  EXPECT_TRUE(by_default.positions().allFinite());
+}
+
 // The cylinder with its second bone unlinked from the first (a second
 // root, as the fox's ears hang from its nose, not its head): the
 // composition does not pair the two bones' fields, so the ring where their

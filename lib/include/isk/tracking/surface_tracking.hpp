@@ -273,7 +273,7 @@ struct SurfaceTrackingOptions {
   // offsets from skinning, as a fraction of their rest distance, and the
   // Jacobi steps that enforce it (0: no limit).
   float strain_limit = 2.f;
-  int strain_limit_steps = 16;
+  int strain_limit_steps = 32;
   // The fold guard (see above): on or off, the strain limit around a folded
   // triangle, how many rings around its corners it reaches, and how many
   // steps apart the folds are found again.
