@@ -331,6 +331,15 @@ TransformList bendAt(const Rig& rig, int joint, double degrees,
   return skinning;
 }
 
+TransformList everyJointBent(const Rig& rig, double degrees) {
+  const AnimationClip bend = makeBendClip(
+      rig.skeleton, static_cast<float>(degrees * 3.14159265358979323846 / 180));
+  return skinningTransforms(
+      rig.skeleton,
+      globalTransforms(rig.skeleton,
+                       bend.sampleLocal(rig.skeleton, bend.duration)));
+}
+
 std::vector<TransformList> clipPoses(const Rig& rig, int frames) {
   std::vector<TransformList> poses;
   const AnimationClip clip =

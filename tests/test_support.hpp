@@ -156,6 +156,10 @@ DecodedPng decodePngFile(const std::string& path);
 TransformList bendAt(const Rig& rig, int joint, double degrees,
                      const Eigen::Vector3f& axis = Eigen::Vector3f::UnitZ());
 
+// Skinning transforms of every joint bent by `degrees`: the last pose of
+// isk-skin's `--clip bend:DEGREES` (isk::makeBendClip).
+TransformList everyJointBent(const Rig& rig, double degrees);
+
 // `frames` skinning poses spread over the rig's first clip, from its start
 // to its end (a 1.5 rad bend of every joint when the rig has none).
 std::vector<TransformList> clipPoses(const Rig& rig, int frames);

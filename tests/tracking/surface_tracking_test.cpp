@@ -1284,12 +1284,7 @@ TEST(SurfaceTracking, CreaseGateStrainsTheSkinLessOnProceduralRigs) {
   // mean strain, measured 9%), and the gate keeps the march's spike at the
   // fold from being spread (ungated: 1.8 where DQS's largest is 1.35).
   const Rig& leg = test::rigNamed("leg");
-  const AnimationClip bend =
-      makeBendClip(leg.skeleton, static_cast<float>(120.0 * M_PI / 180.0));
-  const TransformList bent = skinningTransforms(
-      leg.skeleton,
-      globalTransforms(leg.skeleton,
-                       bend.sampleLocal(leg.skeleton, bend.duration)));
+  const TransformList bent = test::everyJointBent(leg, 120.0);
   checkCreaseGateStrain("leg", leg, sharedFields("leg"),
                         {bent, bendAt(leg, leg.skeleton.find("knee"), 150.0)},
                         -0.1);
@@ -1971,12 +1966,7 @@ TEST(SurfaceTracking, StrainLimitStepsLetTheFoldGuardSettleOnTheLegAt150) {
   // steps it leaves the foot's fine end cap folded onto itself (measured:
   // 232 new pairs at 16 steps, 142 at the default 32, DQS 428).
   const Rig& leg = test::rigNamed("leg");
-  const AnimationClip bend =
-      makeBendClip(leg.skeleton, static_cast<float>(150.0 * M_PI / 180.0));
-  const TransformList pose = skinningTransforms(
-      leg.skeleton,
-      globalTransforms(leg.skeleton,
-                       bend.sampleLocal(leg.skeleton, bend.duration)));
+  const TransformList pose = test::everyJointBent(leg, 150.0);
   ImplicitSkinnerOptions short_steps;
   short_steps.tracking.strain_limit_steps = 16;
   ASSERT_GT(ImplicitSkinnerOptions().tracking.strain_limit_steps, 16);
