@@ -313,6 +313,12 @@ def pairs_max(run):
     return pairs_stat(run, max, "max")
 
 
+def crumpled_sum(run):
+    """Crumpled edges summed over the frames (None where not reported)."""
+    c = quality_of(run).get("crumpled_edges")
+    return c.get("total") if c else None
+
+
 def volume_range(run, field="volume_ratio"):
     v = quality_of(run).get(field)
     return (v.get("min"), v.get("max")) if v else None
@@ -608,7 +614,7 @@ def failed_cell(run):
 def method_row(key, run):
     label = METHOD_LABEL[key]
     if _failed(run):
-        return [label, failed_cell(run)] + [""] * 13
+        return [label, failed_cell(run)] + [""] * 14
     report = run["report"]
     q = quality_of(run)
     si = q.get("self_intersections") or {}
@@ -620,6 +626,7 @@ def method_row(key, run):
             fmt_range(volume_range(run, "covered_volume_ratio")),
             fmt_strain((strain(run) or (None, None))[0]),
             fmt_strain((strain(run) or (None, None))[1]),
+            fmt_count(crumpled_sum(run)),
             pct(q.get("dqs_distance_max")), pct(q.get("jitter_max")),
             fmt_count(q.get("lost_vertices_max")),
             "" if contact is None else f"{contact:g}",
@@ -629,13 +636,14 @@ def method_row(key, run):
 METHOD_HEADER = ["method", "frames", "ms/frame", "new pairs sum",
                  "new pairs max", "pairs at rest", "volume",
                  "covered volume", "strain mean",
-                 "strain max", "distance from DQS max", "jitter max",
-                 "lost max", "contact vertices", "worst frame"]
+                 "strain max", "crumpled edges sum", "distance from DQS max",
+                 "jitter max", "lost max", "contact vertices", "worst frame"]
 
 SUMMARY_HEADER = ["case", "vertices", "DQS new pairs", "implicit new pairs",
                   "DQS volume", "implicit volume", "DQS covered volume",
                   "implicit covered volume", "DQS strain mean / max",
                   "implicit strain mean / max",
+                  "DQS crumpled edges", "implicit crumpled edges",
                   "implicit distance from DQS max", "implicit jitter max",
                   "implicit lost max", "targets met (default)"]
 
@@ -645,7 +653,7 @@ def summary_row(case):
     dqs, imp = runs.get("dqs"), runs.get(DEFAULT_IMPLICIT)
     link = f"[{case_title(case)}](#{case['slug']})"
     if case.get("skipped"):
-        return [link] + [""] * 12 + [case["skipped"]]
+        return [link] + [""] * 14 + [case["skipped"]]
     vertices = next((r["report"].get("vertices") for r in runs.values()
                      if not _failed(r)), None)
 
@@ -663,6 +671,8 @@ def summary_row(case):
             of(imp, fmt_range(volume_range(imp, "covered_volume_ratio"))),
             of(dqs, fmt_strains(strain(dqs))),
             of(imp, fmt_strains(strain(imp))),
+            of(dqs, fmt_count(crumpled_sum(dqs))),
+            of(imp, fmt_count(crumpled_sum(imp))),
             of(imp, pct(qi.get("dqs_distance_max"))),
             of(imp, pct(qi.get("jitter_max"))),
             of(imp, fmt_count(qi.get("lost_vertices_max"))),
@@ -753,7 +763,11 @@ def measures_section(cases):
               "through skin the overlap counts twice), 'covered volume' that "
               "of the covered volume ratio (the volume enclosed once or "
               "more: the overlap counts once); 'strain mean' the mean over the frames of each "
-              "frame's mean edge strain, 'strain max' the largest; distances "
+              "frame's mean edge strain, 'strain max' the largest; "
+              "'crumpled edges' the sum over the frames of the edges "
+              "between two triangles whose bending angle changed from rest "
+              "by more than 60 degrees (crumples and spikes: reported, not "
+              "a target); distances "
               "and jitter are percentages of the rest bounding-box diagonal; "
               "'lost' the tracking's lost vertices (largest frame); "
               "'contact vertices' the median over the frames of the "

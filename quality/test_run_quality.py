@@ -32,11 +32,12 @@ def quiet():
 
 
 def frame(new=0, volume=1.0, strain_mean=0.01, strain_max=0.1,
-          distance=0.001, jitter=None, lost=0):
+          distance=0.001, jitter=None, lost=0, crumpled=0):
     return {"self_intersections": new + 2, "new_self_intersections": new,
             "volume_ratio": volume, "covered_volume_ratio": volume,
             "edge_strain_mean": strain_mean,
-            "edge_strain_max": strain_max, "contact_region_vertices": 0,
+            "edge_strain_max": strain_max, "crumpled_edges": crumpled,
+            "contact_region_vertices": 0,
             "dqs_distance_mean": distance / 2, "dqs_distance_max": distance,
             "jitter_mean": None if jitter is None else jitter / 2,
             "jitter_max": jitter, "lost_vertices": lost}
@@ -59,6 +60,9 @@ def report(frames, method="implicit", rest_pose_error=0.0, clip="walk"):
          "edge_strain": {"mean": sum(f["edge_strain_mean"] for f in frames)
                          / len(frames),
                          "max": max(f["edge_strain_max"] for f in frames)},
+         "crumpled_edges": {
+             "max": max(f["crumpled_edges"] for f in frames),
+             "total": sum(f["crumpled_edges"] for f in frames)},
          "dqs_distance_max": max(f["dqs_distance_max"] for f in frames),
          "jitter_max": max(jitters) if jitters else None,
          "lost_vertices_max": max(f["lost_vertices"] for f in frames),
@@ -201,7 +205,7 @@ def make_case_with_runs(name="CesiumMan.glb", clip=None, imp=None,
     case["runs"] = {
         "lbs": ok(dqs_frames(), method="lbs"),
         "dqs": ok(dqs_frames(), method="dqs"),
-        "auto": imp or ok([frame(new=n) for n in (0, 1, 2)]),
+        "auto": imp or ok([frame(new=n, crumpled=700 * n) for n in (0, 1, 2)]),
         "union": ok([frame(new=n) for n in (0, 1, 3)]),
         "blend": ok([frame(new=n) for n in (0, 9, 2)]),
         "bulge": bulge or failed("isk-skin: error: boom (exit 1)"),
@@ -292,8 +296,11 @@ class Render(unittest.TestCase):
         # The summary rows: CesiumMan meets all 5, the fox none.
         rows = {l.split(" | ")[0]: l for l in text.splitlines()
                 if l.startswith("| [")}
-        self.assertTrue(rows["| [CesiumMan.glb, first clip 'walk']"
-                             "(#cesiumman-clip0)"].endswith("| 5 of 5 |"))
+        cesium = rows["| [CesiumMan.glb, first clip 'walk'](#cesiumman-clip0)"]
+        self.assertTrue(cesium.endswith("| 5 of 5 |"))
+        # DQS's crumpled edges (none) and the default run's, 0 + 700 + 1400.
+        self.assertIn("| 0 | 2,100 |", cesium)
+        self.assertIn("crumpled edges sum", text)
         self.assertTrue(rows["| [fox.glb, procedural bend 90 degrees]"
                              "(#fox-bend90)"].endswith("| 0 of 5 |"))
         summary = text.split("## Summary of targets", 1)[1]

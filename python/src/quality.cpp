@@ -50,6 +50,7 @@ py::dict frameDict(const FrameQuality& frame, const SkinQuality& measure,
   out["rest_volume"] = measure.restVolume();
   out["edge_strain_mean"] = frame.edge_strain_mean;
   out["edge_strain_max"] = frame.edge_strain_max;
+  out["crumpled_edges"] = frame.crumpled_edges;
   out["contact_region_vertices"] = frame.contact_region_vertices;
   out["dqs_distance_mean"] = frame.dqs_distance_mean;
   out["dqs_distance_max"] = frame.dqs_distance_max;
@@ -108,6 +109,8 @@ class ClipQuality {
     out["covered_volume_ratio_max"] = optional(s.covered_volume_ratio_max);
     out["edge_strain_mean"] = s.edge_strain_mean;
     out["edge_strain_max"] = s.edge_strain_max;
+    out["crumpled_edges_max"] = s.crumpled_edges_max;
+    out["crumpled_edges_total"] = s.crumpled_edges_total;
     out["dqs_distance_max"] = s.dqs_distance_max;
     out["jitter_max"] = optional(s.jitter_max);
     out["lost_vertices_max"] = s.lost_vertices_max;

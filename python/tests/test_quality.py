@@ -12,7 +12,8 @@ from conftest import ASSETS, BUILTIN_RIGS, load, rig_spec
 KEYS = {"self_intersections", "new_self_intersections",
         "rest_self_intersections", "volume_ratio", "covered_volume_ratio",
         "rest_volume",
-        "edge_strain_mean", "edge_strain_max", "contact_region_vertices",
+        "edge_strain_mean", "edge_strain_max", "crumpled_edges",
+        "contact_region_vertices",
         "dqs_distance_mean", "dqs_distance_max", "parts"}
 
 
@@ -29,6 +30,7 @@ def test_rest_pose_keeps_everything(name):
     else:
         assert name in ASSETS, "every procedural rig is closed"
     assert q["edge_strain_max"] == 0.0
+    assert q["crumpled_edges"] == 0
     assert q["dqs_distance_max"] == 0.0
     # The rest pose skinned on the device measures the same.
     skinner = isk.GeometricSkinner(rig, method="dqs", device="opencl")
@@ -136,7 +138,8 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
         assert set(c) == set(q) | {"jitter_mean", "jitter_max",
                                    "lost_vertices"}
         for key in ("self_intersections", "new_self_intersections",
-                    "contact_region_vertices", "lost_vertices"):
+                    "crumpled_edges", "contact_region_vertices",
+                    "lost_vertices"):
             assert q.get(key, 0) == expected[i][key], (i, key)
             assert c[key] == expected[i][key], (i, key)
         for key in ("volume_ratio", "covered_volume_ratio",
@@ -154,6 +157,10 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
     assert summary["frames"] == frames
     assert summary["new_self_intersections_total"] == sum(
         f["new_self_intersections"] for f in expected)
+    assert summary["crumpled_edges_total"] == sum(
+        f["crumpled_edges"] for f in expected)
+    assert summary["crumpled_edges_max"] == max(
+        f["crumpled_edges"] for f in expected)
     # Per part: the report's quality.parts (by excess strain) by joint.
     parts = json.loads(report.read_text())["quality"]["parts"]
     assert {p["joint"] for p in summary["parts"]} == {p["joint"] for p in parts}

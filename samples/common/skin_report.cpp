@@ -28,7 +28,10 @@ constexpr const char* kMeasures =
     "per frame: self_intersections (all pairs), new_self_intersections (not "
     "at rest), volume_ratio (to rest), covered_volume_ratio (the volume "
     "enclosed once or more, overlaps counted once, to rest), "
-    "edge_strain_mean/max (|length / rest length - 1|), dqs_distance_mean/max "
+    "edge_strain_mean/max (|length / rest length - 1|), crumpled_edges "
+    "(welded edges between two triangles whose bending angle changed from "
+    "rest by more than 60 degrees: crumples and spikes), "
+    "dqs_distance_mean/max "
     "(distance from the DQS frame of the "
     "same pose over the rest bounding-box diagonal, of the vertices farther "
     "than 5% of the diagonal from any contact), jitter_mean/max (second "
@@ -51,6 +54,7 @@ nlohmann::json frameJson(const FrameQuality& q) {
           {"covered_volume_ratio", optionalNumber(q.covered_volume_ratio)},
           {"edge_strain_mean", q.edge_strain_mean},
           {"edge_strain_max", q.edge_strain_max},
+          {"crumpled_edges", q.crumpled_edges},
           {"contact_region_vertices", q.contact_region_vertices},
           {"dqs_distance_mean", q.dqs_distance_mean},
           {"dqs_distance_max", q.dqs_distance_max},
@@ -94,6 +98,8 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result,
           {"max", *summary.covered_volume_ratio_max}};
     else
       quality["covered_volume_ratio"] = nullptr;
+    quality["crumpled_edges"] = {{"max", summary.crumpled_edges_max},
+                                 {"total", summary.crumpled_edges_total}};
     quality["dqs_distance_max"] = summary.dqs_distance_max;
     quality["jitter_max"] = optionalNumber(summary.jitter_max);
     quality["lost_vertices_max"] = summary.lost_vertices_max;

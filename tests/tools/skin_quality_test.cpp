@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <utility>
 #include <vector>
@@ -56,6 +57,7 @@ TEST(SkinQuality, RestPoseMeasuresNothing) {
     EXPECT_EQ(*q.covered_volume_ratio, 1.0);
     EXPECT_EQ(q.edge_strain_mean, 0);
     EXPECT_EQ(q.edge_strain_max, 0);
+    EXPECT_EQ(q.crumpled_edges, 0);
     EXPECT_EQ(q.dqs_distance_max, 0);
     EXPECT_EQ(q.jitter_mean.has_value(), frame == 2);
     if (q.jitter_max) EXPECT_EQ(*q.jitter_max, 0);
@@ -69,6 +71,7 @@ TEST(SkinQuality, UniformScaleStrainsEveryEdgeAndScalesTheVolume) {
   const FrameQuality q = quality.measure(doubled, &rig.mesh.positions);
   EXPECT_NEAR(q.edge_strain_mean, 1.0, 1e-5);
   EXPECT_NEAR(q.edge_strain_max, 1.0, 1e-5);
+  EXPECT_EQ(q.crumpled_edges, 0);  // a scale bends no edge
   ASSERT_TRUE(q.volume_ratio);
   EXPECT_NEAR(*q.volume_ratio, 8.0, 1e-4);
   ASSERT_TRUE(q.covered_volume_ratio);
@@ -112,11 +115,77 @@ TEST(SkinQuality, ASpikeIsCountedAndStrainsItsEdges) {
   EXPECT_EQ(q.new_self_intersections, q.self_intersections);
   EXPECT_GT(q.edge_strain_max, 1.0);
   EXPECT_LT(q.edge_strain_mean, 0.1);
+  // The spike's edges turn by far more than 60 degrees; no other edge does.
+  EXPECT_GT(q.crumpled_edges, 0);
+  EXPECT_LE(q.crumpled_edges, 12);
   // The DQS frame (the rest pose here) has no new pair: the spike is not
   // near a contact and its distance is what the frame moved it.
   EXPECT_NEAR(q.dqs_distance_max, 2.5 * radial.norm() / quality.diagonal(),
               1e-5);
   EXPECT_EQ(q.contact_region_vertices, 0);
+}
+
+// Two triangles hinged on the edge from the origin along z, the first
+// wing along +x, the second at `angle` radians from it around z (pi: flat).
+Mesh hingeMesh(float angle) {
+  Mesh mesh;
+  mesh.positions.resize(4, 3);
+  mesh.positions << 0, 0, 0, 0, 0, 1, 1, 0, 0.5f, std::cos(angle),
+      std::sin(angle), 0.5f;
+  mesh.triangles.resize(2, 3);
+  mesh.triangles << 0, 1, 2, 1, 0, 3;
+  return mesh;
+}
+
+constexpr float kDegree = static_cast<float>(M_PI / 180.0);
+
+// The bending angle's change against the threshold: the hinge is the only
+// edge two triangles share; a rigid motion or a scale bends nothing; a
+// change through the flat position (+10 to -10 degrees of bending) is 20
+// degrees, not 340.
+TEST(SkinQuality, CrumpledEdgesAreTheHingesBentPastTheThreshold) {
+  const Mesh rest = hingeMesh(170 * kDegree);  // bent 10 degrees
+  SkinQuality quality(rest, groupsOf(rest));
+  EXPECT_EQ(quality.measure(rest.positions, nullptr).crumpled_edges, 0);
+  // Bent to -10, -45 and -55 degrees: changes of 20, 55 and 65 degrees.
+  EXPECT_EQ(quality.measure(hingeMesh(-170 * kDegree).positions, nullptr)
+                .crumpled_edges,
+            0);
+  EXPECT_EQ(quality.measure(hingeMesh(-135 * kDegree).positions, nullptr)
+                .crumpled_edges,
+            0);
+  EXPECT_EQ(quality.measure(hingeMesh(-125 * kDegree).positions, nullptr)
+                .crumpled_edges,
+            1);
+  // Folded onto the first wing: 170 degrees.
+  EXPECT_EQ(
+      quality.measure(hingeMesh(1 * kDegree).positions, nullptr).crumpled_edges,
+      1);
+  // Turned and scaled as a whole: nothing bends.
+  const Eigen::Matrix3f turn =
+      Eigen::AngleAxisf(1.0f, Eigen::Vector3f(1, 2, 3).normalized())
+          .toRotationMatrix();
+  const Matrix3Xf moved = 3.0f * rest.positions * turn.transpose();
+  EXPECT_EQ(quality.measure(moved, nullptr).crumpled_edges, 0);
+
+  // A lower threshold counts the 55-degree change; a bad one is refused.
+  SkinQualityOptions options;
+  options.crumple_degrees = 50;
+  SkinQuality strict(rest, groupsOf(rest), options);
+  EXPECT_EQ(strict.measure(hingeMesh(-135 * kDegree).positions, nullptr)
+                .crumpled_edges,
+            1);
+  for (const float bad : {0.0f, -1.0f, 181.0f, std::nanf("")}) {
+    options.crumple_degrees = bad;
+    try {
+      SkinQuality(rest, groupsOf(rest), options);
+      ADD_FAILURE() << "crumple_degrees " << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("crumple_degrees"),
+                std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 TEST(SkinQuality, VerticesNearAContactAreLeftOutOfTheDistance) {
@@ -171,6 +240,8 @@ TEST(SkinQuality, SummaryPicksTheWorstFrame) {
   frames[3].volume_ratio = 1.01;
   frames[3].edge_strain_max = 0.4;
   frames[3].jitter_max = 0.002;
+  frames[1].crumpled_edges = 5;
+  frames[3].crumpled_edges = 2;
   const QualitySummary s = summarizeQuality(frames);
   EXPECT_EQ(s.frames, 4);
   EXPECT_EQ(s.worst_frame, 2);
@@ -180,6 +251,8 @@ TEST(SkinQuality, SummaryPicksTheWorstFrame) {
   EXPECT_DOUBLE_EQ(*s.volume_ratio_max, 1.01);
   EXPECT_DOUBLE_EQ(s.edge_strain_max, 0.4);
   EXPECT_DOUBLE_EQ(*s.jitter_max, 0.002);
+  EXPECT_EQ(s.crumpled_edges_max, 5);
+  EXPECT_EQ(s.crumpled_edges_total, 7);
   EXPECT_EQ(summarizeQuality({}).worst_frame, -1);
 }
 
@@ -318,6 +391,7 @@ void checkRestAndBend(const Rig& rig, const std::string& name,
   EXPECT_EQ(rest.self_intersections,
             static_cast<int>(quality.restPairs().size()));
   EXPECT_NEAR(rest.edge_strain_max, 0, 1e-6);
+  EXPECT_EQ(rest.crumpled_edges, 0);
 
   const AnimationClip bend = makeBendClip(rig.skeleton, 1.5f, 1.0);
   const TransformList skinning = skinningTransforms(

@@ -1,6 +1,7 @@
 #include "isk/tools/skin_quality.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <iterator>
 #include <map>
@@ -78,6 +79,29 @@ void countPartPairs(const std::vector<std::pair<int, int>>& pairs,
   }
 }
 
+// The angle (radians, in (-pi, pi]) of the hinge's second wing (its
+// corner d) around the edge a-b, from its first wing (corner c), in the
+// plane across the edge: +-pi where the two triangles lie flat, 0 where
+// they fold onto each other. Unset where the edge or a wing is degenerate.
+std::optional<double> hingeAngle(const Matrix3Xf& x,
+                                 const std::array<int, 4>& hinge) {
+  const Eigen::Vector3d a = x.row(hinge[0]).transpose().cast<double>();
+  Eigen::Vector3d e = x.row(hinge[1]).transpose().cast<double>() - a;
+  const double length = e.norm();
+  if (!(length > 0)) return std::nullopt;
+  e /= length;
+  Eigen::Vector3d u = x.row(hinge[2]).transpose().cast<double>() - a;
+  Eigen::Vector3d w = x.row(hinge[3]).transpose().cast<double>() - a;
+  u -= u.dot(e) * e;
+  w -= w.dot(e) * e;
+  const double u_length = u.norm(), w_length = w.norm();
+  const double degenerate = 1e-6 * length;
+  if (!(u_length > degenerate) || !(w_length > degenerate)) return std::nullopt;
+  u /= u_length;
+  const Eigen::Vector3d v = e.cross(u);
+  return std::atan2(w.dot(v), w.dot(u));
+}
+
 }  // namespace
 
 SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
@@ -113,6 +137,12 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
                       std::to_string(parts[v]) + " (expected -1 or more)");
     }
   }
+  if (!(options_.crumple_degrees > 0 && options_.crumple_degrees <= 180)) {
+    throw Error(ErrorCode::kInvalidArgument,
+                "SkinQuality: crumple_degrees is " +
+                    std::to_string(options_.crumple_degrees) +
+                    " (expected more than 0 and at most 180)");
+  }
   diagonal_ = boundingBoxDiagonal(rest.positions);
   rest_pairs_ = pairsOf(rest.positions, triangles_, groups_);
   rest_volume_ = enclosedVolume(rest.positions, triangles_);
@@ -145,6 +175,29 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
     }
   }
   edges_ = std::move(kept);
+
+  // The hinges: welded edges of exactly two triangles (boundary and
+  // non-manifold edges have no bending angle to speak of).
+  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> wings;
+  for (Eigen::Index f = 0; f < triangles_.rows(); ++f) {
+    const int g[3] = {groups_[triangles_(f, 0)], groups_[triangles_(f, 1)],
+                      groups_[triangles_(f, 2)]};
+    if (g[0] == g[1] || g[1] == g[2] || g[2] == g[0]) continue;
+    for (int c = 0; c < 3; ++c) {
+      const int a = g[c], b = g[(c + 1) % 3];
+      wings[{std::min(a, b), std::max(a, b)}].emplace_back(static_cast<int>(f),
+                                                           g[(c + 2) % 3]);
+    }
+  }
+  for (const auto& [edge, sides] : wings) {
+    if (sides.size() != 2 || sides[0].second == sides[1].second) continue;
+    const std::array<int, 4> hinge = {edge.first, edge.second, sides[0].second,
+                                      sides[1].second};
+    const std::optional<double> angle = hingeAngle(rest.positions, hinge);
+    if (!angle) continue;
+    hinges_.push_back(hinge);
+    hinge_rest_angles_.push_back(static_cast<float>(*angle));
+  }
 
   // Each part's edges: those with an end in it, once.
   if (!parts.empty()) {
@@ -246,6 +299,16 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
     q.edge_strain_max = std::max(q.edge_strain_max, strain);
   }
   if (!edges_.empty()) q.edge_strain_mean = strain_sum / edges_.size();
+
+  const double crumple = options_.crumple_degrees * M_PI / 180.0;
+  for (size_t h = 0; h < hinges_.size(); ++h) {
+    const std::optional<double> angle = hingeAngle(positions, hinges_[h]);
+    if (!angle) continue;
+    // The change of the bending angle, wrapped to [0, pi].
+    double change = std::abs(*angle - hinge_rest_angles_[h]);
+    if (change > M_PI) change = 2 * M_PI - change;
+    if (change > crumple) ++q.crumpled_edges;
+  }
 
   const Matrix3Xf& reference = dqs ? *dqs : positions;
   const std::vector<std::pair<int, int>> reference_new =
@@ -358,6 +421,8 @@ QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames) {
     }
     strain_sum += q.edge_strain_mean;
     s.edge_strain_max = std::max(s.edge_strain_max, q.edge_strain_max);
+    s.crumpled_edges_max = std::max(s.crumpled_edges_max, q.crumpled_edges);
+    s.crumpled_edges_total += q.crumpled_edges;
     s.dqs_distance_max = std::max(s.dqs_distance_max, q.dqs_distance_max);
     if (q.jitter_max) {
       s.jitter_max =

@@ -12,6 +12,9 @@
 //     points enclosed once or more: overlaps counted once) over its rest
 //     value;
 //   - edge strain, |length / rest length - 1| over the welded edges;
+//   - crumpled edges: welded edges between two triangles whose bending
+//     angle changed from rest by more than crumple_degrees (the crumples
+//     and spikes that a mean strain averages away);
 //   - distance from the DQS frame of the same pose of the vertices away
 //     from any contact, over the rest bounding-box diagonal;
 //   - temporal jitter: the second difference of each vertex's positions
@@ -23,6 +26,7 @@
 //     character a deformation departs from skinning.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <utility>
@@ -39,6 +43,10 @@ struct SkinQualityOptions {
   // flags (stopped at a contact by the tracking) or a corner of a triangle
   // that the DQS frame makes intersect anew.
   float contact_radius = 0.05f;
+  // An edge is crumpled when its bending angle (the signed angle between
+  // its two triangles' planes, 0 where they are flat) differs from its rest
+  // angle by more than this, in degrees.
+  float crumple_degrees = 60.0f;
   // Optional, #V (or empty: no per-part measures): the part of each vertex,
   // a non-negative id (a joint index: BonePartition::vertex_joint) or -1
   // for none. Each frame then measures every part (FrameQuality::parts).
@@ -71,6 +79,9 @@ struct FrameQuality {
   // where volume_ratio is.
   std::optional<double> covered_volume_ratio;
   double edge_strain_mean = 0, edge_strain_max = 0;
+  // Welded edges of two triangles whose bending angle changed from rest by
+  // more than SkinQualityOptions::crumple_degrees.
+  int crumpled_edges = 0;
   // Vertices (welded) near a contact, and the others' distance from their
   // DQS position over the diagonal (0 without a DQS frame: the frame is one).
   int contact_region_vertices = 0;
@@ -93,6 +104,8 @@ struct QualitySummary {
   std::optional<double> covered_volume_ratio_min, covered_volume_ratio_max;
   double edge_strain_mean = 0;  // mean over the frames of their means
   double edge_strain_max = 0;
+  int crumpled_edges_max = 0;
+  long long crumpled_edges_total = 0;
   double dqs_distance_max = 0;
   std::optional<double> jitter_max;
   int lost_vertices_max = 0;
@@ -114,7 +127,8 @@ class SkinQuality {
   // indices: isk::coincidentVertexGroups or a tracking mesh's
   // representatives) weld seam duplicates. Counts the rest pose's
   // intersecting pairs. Throws isk::Error(kInvalidArgument) on a bad size
-  // (of the groups or of options.vertex_parts, or a part id below -1).
+  // (of the groups or of options.vertex_parts, or a part id below -1) or a
+  // crumple_degrees outside (0, 180].
   SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
               SkinQualityOptions options = {});
 
@@ -153,6 +167,11 @@ class SkinQuality {
   std::vector<std::pair<int, int>> rest_pairs_, last_pairs_, last_new_pairs_;
   std::vector<std::pair<int, int>> edges_;  // welded, unique
   std::vector<float> edge_rest_lengths_;
+  // The welded edges that two triangles share and no other, each as its
+  // two ends and the two opposite corners, with its rest bending angle
+  // (radians): the crumpled edges' measure.
+  std::vector<std::array<int, 4>> hinges_;
+  std::vector<float> hinge_rest_angles_;
   // Per part with an edge (ascending id): the edges with an end in it.
   std::vector<int> part_ids_;
   std::vector<std::vector<int>> part_edges_;
