@@ -178,21 +178,20 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
 
   // The hinges: welded edges of exactly two triangles (boundary and
   // non-manifold edges have no bending angle to speak of).
-  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> wings;
+  std::map<std::pair<int, int>, std::vector<int>> wings;  // opposite corners
   for (Eigen::Index f = 0; f < triangles_.rows(); ++f) {
     const int g[3] = {groups_[triangles_(f, 0)], groups_[triangles_(f, 1)],
                       groups_[triangles_(f, 2)]};
     if (g[0] == g[1] || g[1] == g[2] || g[2] == g[0]) continue;
     for (int c = 0; c < 3; ++c) {
       const int a = g[c], b = g[(c + 1) % 3];
-      wings[{std::min(a, b), std::max(a, b)}].emplace_back(static_cast<int>(f),
-                                                           g[(c + 2) % 3]);
+      wings[{std::min(a, b), std::max(a, b)}].push_back(g[(c + 2) % 3]);
     }
   }
-  for (const auto& [edge, sides] : wings) {
-    if (sides.size() != 2 || sides[0].second == sides[1].second) continue;
-    const std::array<int, 4> hinge = {edge.first, edge.second, sides[0].second,
-                                      sides[1].second};
+  for (const auto& [edge, corners] : wings) {
+    if (corners.size() != 2 || corners[0] == corners[1]) continue;
+    const std::array<int, 4> hinge = {edge.first, edge.second, corners[0],
+                                      corners[1]};
     const std::optional<double> angle = hingeAngle(rest.positions, hinge);
     if (!angle) continue;
     hinges_.push_back(hinge);
