@@ -34,6 +34,8 @@ py::list partsList(const std::vector<PartQuality>& parts, const Rig& rig) {
     part["dqs_distance_max"] = p.dqs_distance_max;
     part["new_pairs"] = p.new_pairs;
     part["dqs_new_pairs"] = p.dqs_new_pairs;
+    part["crumpled_edges"] = p.crumpled_edges;
+    part["dqs_crumpled_edges"] = p.dqs_crumpled_edges;
     out.append(part);
   }
   return out;

@@ -170,6 +170,8 @@ def test_measures_equal_isk_skin_report(tmp_path, name, method):
         assert part["edges"] == reported["edges"]
         assert part["new_pairs"] == reported["new_pairs"]
         assert part["dqs_new_pairs"] == reported["dqs_new_pairs"]
+        assert part["crumpled_edges"] == reported["crumpled_edges"]
+        assert part["dqs_crumpled_edges"] == reported["dqs_crumpled_edges"]
         for key in ("edge_strain_mean", "dqs_edge_strain_mean",
                     "dqs_distance_max"):
             assert part[key] == pytest.approx(reported[key], rel=1e-9,

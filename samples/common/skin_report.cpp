@@ -116,7 +116,9 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result,
                        {"dqs_edge_strain_mean", p.dqs_edge_strain_mean},
                        {"dqs_distance_max", p.dqs_distance_max},
                        {"new_pairs", p.new_pairs},
-                       {"dqs_new_pairs", p.dqs_new_pairs}});
+                       {"dqs_new_pairs", p.dqs_new_pairs},
+                       {"crumpled_edges", p.crumpled_edges},
+                       {"dqs_crumpled_edges", p.dqs_crumpled_edges}});
     }
     quality["parts"] = parts;
   }

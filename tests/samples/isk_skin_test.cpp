@@ -1118,7 +1118,9 @@ TEST(IskSkinTest, PartsAreReportedByTheirExcessStrain) {
       previous = excess;
       EXPECT_GE(p["new_pairs"].get<long long>(), 0);
       EXPECT_GE(p["dqs_new_pairs"].get<long long>(), 0);
+      EXPECT_GE(p["crumpled_edges"].get<long long>(), 0);
       if (method == "dqs") {
+        EXPECT_EQ(p["crumpled_edges"], p["dqs_crumpled_edges"]);
         EXPECT_EQ(excess, 0);
         EXPECT_EQ(p["dqs_distance_max"].get<double>(), 0);
         EXPECT_EQ(p["new_pairs"], p["dqs_new_pairs"]);

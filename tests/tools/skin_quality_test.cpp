@@ -118,6 +118,23 @@ TEST(SkinQuality, ASpikeIsCountedAndStrainsItsEdges) {
   // The spike's edges turn by far more than 60 degrees; no other edge does.
   EXPECT_GT(q.crumpled_edges, 0);
   EXPECT_LE(q.crumpled_edges, 12);
+  // By part: the spike's crumpled edges are its part's (and perhaps a
+  // neighbouring part's, by an edge's other end); DQS, the rest pose, has
+  // none.
+  SkinQualityOptions options;
+  options.vertex_parts = partitionMesh(rig).vertex_joint;
+  SkinQuality by_part(mesh, groupsOf(mesh), options);
+  const FrameQuality pq = by_part.measure(spiked, &mesh.positions);
+  EXPECT_EQ(pq.crumpled_edges, q.crumpled_edges);
+  long long in_parts = 0;
+  for (const PartQuality& p : pq.parts) {
+    EXPECT_EQ(p.dqs_crumpled_edges, 0);
+    EXPECT_LE(p.crumpled_edges, q.crumpled_edges);
+    if (p.part == options.vertex_parts[v])
+      EXPECT_GT(p.crumpled_edges, 0) << "part " << p.part;
+    in_parts += p.crumpled_edges;
+  }
+  EXPECT_GE(in_parts, q.crumpled_edges);
   // The DQS frame (the rest pose here) has no new pair: the spike is not
   // near a contact and its distance is what the frame moved it.
   EXPECT_NEAR(q.dqs_distance_max, 2.5 * radial.norm() / quality.diagonal(),
@@ -307,6 +324,8 @@ TEST(SkinQuality, PartsShowWhereTheFrameDepartsFromDqs) {
     EXPECT_NEAR(summary.parts[k].edge_strain_mean,
                 0.5 * q.parts[k].edge_strain_mean, 1e-12);
     EXPECT_EQ(summary.parts[k].dqs_distance_max, q.parts[k].dqs_distance_max);
+    EXPECT_EQ(summary.parts[k].crumpled_edges,
+              q.parts[k].crumpled_edges + rest.parts[k].crumpled_edges);
   }
   // Without parts, none are measured.
   SkinQuality plain(mesh, groupsOf(mesh));
@@ -421,6 +440,7 @@ void checkRestAndBend(const Rig& rig, const std::string& name,
     EXPECT_EQ(p.edge_strain_mean, p.dqs_edge_strain_mean);
     EXPECT_EQ(p.dqs_distance_max, 0);
     EXPECT_EQ(p.new_pairs, p.dqs_new_pairs);
+    EXPECT_EQ(p.crumpled_edges, p.dqs_crumpled_edges);
     EXPECT_EQ(p.new_pairs, pairsTouching(p.part, by_part.lastNewPairs(),
                                          rig.mesh, options.vertex_parts));
   }

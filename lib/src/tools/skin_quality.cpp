@@ -213,6 +213,21 @@ SkinQuality::SkinQuality(const Mesh& rest, std::vector<int> vertex_groups,
   }
 }
 
+std::vector<uint8_t> SkinQuality::crumpledHinges(
+    const Matrix3Xf& positions) const {
+  const double crumple = options_.crumple_degrees * M_PI / 180.0;
+  std::vector<uint8_t> out(hinges_.size(), 0);
+  for (size_t h = 0; h < hinges_.size(); ++h) {
+    const std::optional<double> angle = hingeAngle(positions, hinges_[h]);
+    if (!angle) continue;
+    // The change of the bending angle, wrapped to [0, pi].
+    double change = std::abs(*angle - hinge_rest_angles_[h]);
+    if (change > M_PI) change = 2 * M_PI - change;
+    out[h] = change > crumple;
+  }
+  return out;
+}
+
 std::vector<uint8_t> SkinQuality::contactRegion(
     const Matrix3Xf& reference, const std::vector<uint8_t>* contacts,
     const std::vector<std::pair<int, int>>& reference_new_pairs) const {
@@ -299,15 +314,9 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
   }
   if (!edges_.empty()) q.edge_strain_mean = strain_sum / edges_.size();
 
-  const double crumple = options_.crumple_degrees * M_PI / 180.0;
-  for (size_t h = 0; h < hinges_.size(); ++h) {
-    const std::optional<double> angle = hingeAngle(positions, hinges_[h]);
-    if (!angle) continue;
-    // The change of the bending angle, wrapped to [0, pi].
-    double change = std::abs(*angle - hinge_rest_angles_[h]);
-    if (change > M_PI) change = 2 * M_PI - change;
-    if (change > crumple) ++q.crumpled_edges;
-  }
+  const std::vector<uint8_t> crumpled = crumpledHinges(positions);
+  q.crumpled_edges = static_cast<int>(
+      std::count(crumpled.begin(), crumpled.end(), uint8_t{1}));
 
   const Matrix3Xf& reference = dqs ? *dqs : positions;
   const std::vector<std::pair<int, int>> reference_new =
@@ -347,6 +356,24 @@ FrameQuality SkinQuality::measure(const Matrix3Xf& positions,
                    &PartQuality::new_pairs, &q.parts);
     countPartPairs(reference_new, triangles_, options_.vertex_parts, index,
                    &PartQuality::dqs_new_pairs, &q.parts);
+    // Each crumpled hinge once in each part of its two ends.
+    auto countCrumpled = [&](const std::vector<uint8_t>& flags,
+                             long long PartQuality::*count) {
+      for (size_t h = 0; h < hinges_.size(); ++h) {
+        if (!flags[h]) continue;
+        const int pa = options_.vertex_parts[hinges_[h][0]];
+        const int pb = options_.vertex_parts[hinges_[h][1]];
+        auto add = [&](int part) {
+          const auto it = index.find(part);
+          if (it != index.end()) ++(q.parts[it->second].*count);
+        };
+        add(pa);
+        if (pb != pa) add(pb);
+      }
+    };
+    countCrumpled(crumpled, &PartQuality::crumpled_edges);
+    countCrumpled(dqs ? crumpledHinges(*dqs) : crumpled,
+                  &PartQuality::dqs_crumpled_edges);
   }
   const std::vector<uint8_t> region =
       contactRegion(reference, contacts, reference_new);
@@ -453,6 +480,8 @@ QualitySummary summarizeQuality(const std::vector<FrameQuality>& frames) {
       sum.dqs_distance_max = std::max(sum.dqs_distance_max, p.dqs_distance_max);
       sum.new_pairs += p.new_pairs;
       sum.dqs_new_pairs += p.dqs_new_pairs;
+      sum.crumpled_edges += p.crumpled_edges;
+      sum.dqs_crumpled_edges += p.dqs_crumpled_edges;
       ++count;
     }
   }

@@ -22,8 +22,8 @@
 //   - lost vertices (the tracking's, given by the caller);
 //   - optionally, per part of the mesh (a bone's part: BonePartition's
 //     vertex_joint), the edge strain against DQS's, the largest distance
-//     from DQS and the new intersecting pairs against DQS's: where on the
-//     character a deformation departs from skinning.
+//     from DQS, the new intersecting pairs and the crumpled edges against
+//     DQS's: where on the character a deformation departs from skinning.
 #pragma once
 
 #include <array>
@@ -68,6 +68,9 @@ struct PartQuality {
   // either triangle in the part (a pair counts once in each part it
   // touches), and the DQS frame's; over a clip, their sums.
   long long new_pairs = 0, dqs_new_pairs = 0;
+  // The frame's crumpled edges with an end in the part, and the DQS
+  // frame's; over a clip, their sums.
+  long long crumpled_edges = 0, dqs_crumpled_edges = 0;
 };
 
 struct FrameQuality {
@@ -156,6 +159,10 @@ class SkinQuality {
   double restVolume() const { return rest_volume_; }
 
  private:
+  // Per hinge (hinges_): whether its bending angle in `positions` changed
+  // from rest by more than crumple_degrees.
+  std::vector<uint8_t> crumpledHinges(const Matrix3Xf& positions) const;
+
   // Vertices near a contact of the frame (flags, #V).
   std::vector<uint8_t> contactRegion(
       const Matrix3Xf& reference, const std::vector<uint8_t>* contacts,
