@@ -749,8 +749,8 @@ LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-march-order", "no-occupied-cells", "no-value-bounds",
           "no-lane-tests", "no-active-vertices", "no-pair-bounds",
           "half-grids", "sigma-0.5",
-          "sigma-0.7", "sigma-1", "no-fold-guard", "strain-limit-steps-16",
-          "union-operator", "history-tracking")
+          "sigma-0.7", "sigma-1", "no-fold-guard", "no-tilt-guard",
+          "strain-limit-steps-16", "union-operator", "history-tracking")
 
 
 def moved(run):
@@ -826,6 +826,10 @@ def levers_section(results):
               "strain limit without its fold guard "
               "(`SurfaceTrackingOptions::fold_guard`, docs/algorithm.md), "
               "so that 'frame / all' below 1 is what the guard costs; and "
+              "'no-tilt-guard': every switch on, and the fold guard "
+              "without its tilt guard (`SurfaceTrackingOptions::"
+              "tilt_guard_degrees` 0), so that 'frame / all' below 1 is "
+              "what the tilt guard costs; and "
               "'strain-limit-steps-16': every switch on, and the strain "
               "limit in 16 Jacobi steps instead of the default 32 "
               "(`SurfaceTrackingOptions::strain_limit_steps`, "

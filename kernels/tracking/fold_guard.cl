@@ -5,7 +5,8 @@
 // larger weight of its ends. A triangle has folded over when its normal, at
 // the skinned positions plus the steps' offsets, opposes its skinned normal
 // and the sum of its corners' skinned normals, and the skinned triangle does
-// not oppose that sum. OpenCL C 1.2. CPU reference:
+// not oppose that sum. The tilt guard also weighs the triangles turned
+// steeply from both. OpenCL C 1.2. CPU reference:
 // CpuSurfaceTracking::weighFolds (lib/src/tracking/surface_tracking.cpp).
 //
 // Device order as in tracking/strain_limit.cl: offsets, rings, marks and the
@@ -65,12 +66,15 @@ __kernel void track_fold_frames(const uint triangle_count,
 // Each triangle's fold weight (foldWeight), in [0, 1]: how far its normal
 // at the skinned positions plus the offsets opposes both its skinned normal
 // and the sum of its corners' skinned normals, each cosine ramped over
-// ISK_FOLD_RAMP, times its allowance.
+// ISK_FOLD_RAMP, times its allowance. With the tilt guard (tilt_scale > 0),
+// the larger of that and tilt_scale times how far the normal turned past
+// tilt_cosine from both (tiltWeight).
 __kernel void track_weigh_triangles(
     const uint triangle_count, __global const float* offsets,
     __global const float* skinned, __global const int* source,
     __global const int* fold_corners, __global const float4* frames,
-    __global float* triangle_weights) {
+    __global float* triangle_weights, const float tilt_cosine,
+    const float tilt_scale) {
   const uint t = get_global_id(0);
   if (t >= triangle_count) return;
   const float4 a = frames[2 * t];
@@ -83,9 +87,16 @@ __kernel void track_weigh_triangles(
     }
     const float3 now = triangle_normal(p[0], p[1], p[2]);
     const float length = sqrt(dot3(now, now));
-    if (length > 0.0f)
-      weight = fold_ramp(-dot3(now, frames[2 * t + 1].xyz) / length) *
-               fold_ramp(-dot3(now, a.xyz) / length) * a.w;
+    if (length > 0.0f) {
+      const float along_sum = dot3(now, frames[2 * t + 1].xyz) / length;
+      const float along_skinned = dot3(now, a.xyz) / length;
+      weight = fold_ramp(-along_sum) * fold_ramp(-along_skinned) * a.w;
+      if (tilt_scale > 0.0f)
+        weight = fmax(weight, tilt_scale * (fold_ramp(tilt_cosine - along_sum) *
+                                            fold_ramp(tilt_cosine -
+                                                      along_skinned) *
+                                            a.w));
+    }
   }
   triangle_weights[t] = weight;
 }

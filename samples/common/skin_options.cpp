@@ -268,6 +268,17 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "checks for folded triangles")
           ->check(CLI::Range(1, 1000))
           ->capture_default_str(),
+      app.add_option("--tilt-guard", tracking.tilt_guard_degrees,
+                     "implicit: with the fold guard, the strain limit also "
+                     "evens out triangles turned more than this from their "
+                     "skinned normal: spikes and crumples (degrees; 0: off)")
+          ->check(CLI::Range(0.0, 179.0))
+          ->capture_default_str(),
+      app.add_option("--tilt-strain-limit", tracking.tilt_strain_limit,
+                     "implicit: the strain limit on the edges near a "
+                     "triangle the tilt guard finds")
+          ->check(CLI::Range(0.0, 100.0))
+          ->capture_default_str(),
       app.add_option("--tracking", options.tracking_mode,
                      "implicit: 2013 (each frame marches from dual "
                      "quaternion skinning, the paper) or history (from the "

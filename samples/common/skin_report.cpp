@@ -156,6 +156,8 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"fold_strain_limit", t.fold_strain_limit},
           {"fold_rings", t.fold_rings},
           {"fold_check_steps", t.fold_check_steps},
+          {"tilt_guard_degrees", t.tilt_guard_degrees},
+          {"tilt_strain_limit", t.tilt_strain_limit},
           {"history_keep", t.history_keep}};
 }
 

@@ -123,8 +123,9 @@ constexpr double kFlipFraction = 0.002;
 // The same for whole frames and for stages chained on each backend's own
 // state: a vertex whose march drifts apart by rounding, or stops one step
 // apart, is spread by the crease steps over five rings and to its seam
-// copies.
-constexpr double kSpreadFlipFraction = 0.01;
+// copies, and by the strain limit's fold and tilt guards over the rings
+// around a turned triangle (CesiumMan's half-precision frame: 35 of 2,612).
+constexpr double kSpreadFlipFraction = 0.02;
 
 TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
   EXPECT_TRUE(SurfaceTrackingOptions().validate());
@@ -162,6 +163,18 @@ TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
     o = {};
     o.fold_rings = rings;
     EXPECT_NE(o.validate().reason().find("fold_rings"), std::string::npos);
+  }
+  for (const float degrees : {-1.f, NAN, 180.f}) {
+    o = {};
+    o.tilt_guard_degrees = degrees;
+    EXPECT_NE(o.validate().reason().find("tilt_guard_degrees"),
+              std::string::npos);
+  }
+  for (const float limit : {-1.f, NAN, 200.f}) {
+    o = {};
+    o.tilt_strain_limit = limit;
+    EXPECT_NE(o.validate().reason().find("tilt_strain_limit"),
+              std::string::npos);
   }
   for (const int steps : {0, 1001}) {
     o = {};
@@ -805,6 +818,185 @@ TEST(SurfaceTracking, FoldGuardSmoothsFoldsOutOnAssets) {
   }
 }
 
+// Triangles of x turned more than acos(cosine) from both their skinned
+// normal and the sum of their corners' skinned normals (the tilt guard's
+// test, unramped).
+int tiltedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
+                    const Matrix3Xf& skinned, const Matrix3Xf& normals,
+                    float cosine) {
+  int tilted = 0;
+  auto normal = [&](const Matrix3Xf& p, const int* r) {
+    return Eigen::Vector3f(
+        (p.row(r[1]) - p.row(r[0])).cross(p.row(r[2]) - p.row(r[0])));
+  };
+  for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
+    int r[3];
+    for (int c = 0; c < 3; ++c)
+      r[c] = mesh.rings.representative[mesh.triangles(t, c)];
+    const Eigen::Vector3f now = normal(x, r).normalized();
+    const Eigen::Vector3f was = normal(skinned, r).normalized();
+    const Eigen::Vector3f expected =
+        Eigen::Vector3f(normals.row(r[0]) + normals.row(r[1]) +
+                        normals.row(r[2]))
+            .normalized();
+    if (now.dot(expected) < cosine && now.dot(was) < cosine) ++tilted;
+  }
+  return tilted;
+}
+
+// The tilt guard on a spike made by hand: the tracked vertex with the most
+// even ring pushed out along its skinned normal by 2.9 of its ring's
+// shortest edges, so that the triangles on that edge turn by more than 70
+// degrees without folding over. The strain limit alone (3 rest lengths here)
+// leaves the spike as it is; with the tilt guard (60 degrees, its limit
+// 0.75) the spike comes down and fewer triangles stay tilted past 60
+// degrees; OpenCL does the same as the reference. The skinned frame has no
+// tilt.
+// Returns whether the spike was made and checked: on some assets no ring
+// pushed so turns a triangle past 60 degrees (flat-shaded normals), or the
+// strain limit alone already takes it down (rings of welded seams).
+bool checkTiltGuard(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
+                    const TransformList& pose) {
+  const TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
+  const auto context = test::sharedContext();
+  ClSkinning device_dqs(context, rig.mesh, rig.weights,
+                        rig.skeleton.jointCount());
+  device_dqs.run(SkinningMethod::kDualQuaternion, pose, false);
+  Matrix3Xf skinned, normals;
+  device_dqs.readPositions(skinned);
+  device_dqs.readNormals(normals);
+  SurfaceTrackingOptions guarded, unguarded;
+  guarded.strain_limit = unguarded.strain_limit = 3.f;
+  guarded.tilt_guard_degrees = 60.f;
+  guarded.tilt_strain_limit = 0.75f;
+  unguarded.tilt_guard_degrees = 0.f;
+  EXPECT_FLOAT_EQ(tiltGuardScale(guarded), 0.75f);  // (3 - 0.75) / 3
+  EXPECT_EQ(tiltGuardScale(unguarded), 0.f);
+  CpuSurfaceTracking with(f->grids, &f->composition, mesh, guarded);
+  CpuSurfaceTracking without(f->grids, &f->composition, mesh, unguarded);
+  with.begin(pose, skinned, normals);
+  without.begin(pose, skinned, normals);
+  const std::vector<TrackState> states = with.states();
+  const Matrix4Xf prev = with.previousGradients();
+  with.limitStrain();
+  EXPECT_EQ(with.foldedTriangleCount(), 0);
+  EXPECT_EQ(test::largestRowDistance(with.positions(), skinned).distance, 0.f);
+  const OneRings& rings = mesh.rings;
+  // The tracked closed ring most even in its edges' rest lengths (a
+  // coarse asset's rings are not): pushed by its shortest, every triangle
+  // of the fan turns steeply.
+  auto evenness = [&](int v) {
+    float shortest = std::numeric_limits<float>::infinity(), longest = 0.f;
+    for (uint32_t i = rings.offsets[v]; i < rings.offsets[v + 1]; ++i) {
+      shortest = std::min(shortest, mesh.ring_lengths[i]);
+      longest = std::max(longest, mesh.ring_lengths[i]);
+    }
+    return longest > 0.f ? shortest / longest : 0.f;
+  };
+  int spike = -1;
+  float spike_evenness = 0.f;
+  for (int v = 0; v < mesh.vertexCount(); ++v) {
+    if (states[v] != TrackState::kMarching ||
+        rings.kinds[v] != RingKind::kClosed ||
+        rings.offsets[v + 1] - rings.offsets[v] < 5)
+      continue;
+    const float e = evenness(v);
+    if (spike < 0 || e > spike_evenness) {
+      spike = v;
+      spike_evenness = e;
+    }
+  }
+  if (spike < 0) {  // an open sheet of a few vertices (quad_skin)
+    std::cout << "[ tilt guard ] no tracked closed ring to spike: only the "
+                 "skinned frame checked\n";
+    return false;
+  }
+  float shortest = std::numeric_limits<float>::infinity();
+  for (uint32_t i = rings.offsets[spike]; i < rings.offsets[spike + 1]; ++i)
+    shortest = std::min(shortest, mesh.ring_lengths[i]);
+  const float pushed = 2.9f * shortest;
+  Matrix3Xf spiked = skinned;
+  spiked.row(spike) += pushed * normals.row(spike);
+  const float cosine = tiltGuardCosine(guarded);
+  const int tilts_made =
+      tiltedTriangles(mesh, spiked, skinned, normals, cosine);
+  if (tilts_made == 0) {
+    std::cout << "[ tilt guard ] vertex " << spike
+              << " pushed out: no triangle tilted past 60 degrees, not "
+                 "checked\n";
+    return false;
+  }
+  detail::TrackingTestAccess::setState(with, spiked, states, prev);
+  detail::TrackingTestAccess::setState(without, spiked, states, prev);
+  with.limitStrain();
+  without.limitStrain();
+  const int tilts_without =
+      tiltedTriangles(mesh, without.positions(), skinned, normals, cosine);
+  const int tilts_with =
+      tiltedTriangles(mesh, with.positions(), skinned, normals, cosine);
+  const float height_without =
+      (without.positions().row(spike) - skinned.row(spike)).norm();
+  const float height_with =
+      (with.positions().row(spike) - skinned.row(spike)).norm();
+  std::cout << "[ tilt guard ] vertex " << spike
+            << " pushed out 2.9 edge lengths: " << tilts_made
+            << " tilted triangles, " << tilts_without
+            << " after the strain limit alone, " << tilts_with
+            << " with the tilt guard; height " << height_without / shortest
+            << " -> " << height_with / shortest << " edge lengths\n";
+  if (tilts_without < tilts_made) {
+    std::cout << "[ tilt guard ] the strain limit alone took the spike "
+                 "down: not checked\n";
+    return false;
+  }
+  EXPECT_NEAR(height_without, pushed, 1e-4f * pushed);
+  EXPECT_LT(tilts_with, tilts_without);
+  EXPECT_LT(height_with, 0.9f * pushed);
+  // OpenCL: the same steps from the same state.
+  ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
+                           FieldStorage::kAuto, &f->composition);
+  ClSurfaceTracking cl(fields, mesh, guarded);
+  cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
+  detail::TrackingTestAccess::setState(cl, spiked, states, prev);
+  cl.limitStrain();
+  Matrix3Xf positions;
+  cl.readPositions(positions);
+  const test::RowMismatch worst =
+      test::largestRowDistance(positions, with.positions());
+  EXPECT_LE(worst.distance,
+            stageTolerance(*context) * rig.boundingBoxDiagonal())
+      << "OpenCL against the reference: vertex " << worst.row;
+  return true;
+}
+
+TEST(SurfaceTracking, TiltGuardBringsSpikesDownOnProceduralRigs) {
+  for (const std::string& name : builtinRigNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    EXPECT_TRUE(
+        checkTiltGuard(rig, sharedFields(name), clipPoses(rig, 5).back()));
+  }
+}
+
+TEST(SurfaceTracking, TiltGuardBringsSpikesDownOnAssets) {
+  if (!test::haveAssets())
+    GTEST_SKIP() << test::missingAssetsMessage("tilt guard on assets");
+  int checked = 0;
+  for (const std::string& name : test::assetNames()) {
+    SCOPED_TRACE(name);
+    const Rig& rig = test::rigNamed(name);
+    ImplicitFieldsOptions tracked;
+    tracked.rigid_pieces = RigidPieces::kTracked;
+    const auto fields = rigidPieceVertices(rig).empty()
+                            ? sharedFields(name)
+                            : std::make_shared<const ImplicitFields>(
+                                  buildImplicitFields(rig, tracked));
+    std::cout << "[ tilt guard ] " << name << "\n";
+    checked += checkTiltGuard(rig, fields, clipPoses(rig, 5)[2]);
+  }
+  EXPECT_GE(checked, 3);
+}
+
 // A coarse arm (a few hundred vertices, the failure class of the shared
 // low-poly animals): per elbow bend, new self-intersecting pairs against the
 // rest pose, volume over rest and the largest edge strain of a frame.
@@ -1302,10 +1494,12 @@ TEST(SurfaceTracking, CreaseGateStrainsTheSkinLessOnProceduralRigs) {
 TEST(SurfaceTracking, CreaseGateStrainsTheSkinLessOnAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("the crease gate's strain");
+  // At least 8% less mean strain (measured: the horse 17%, CesiumMan 10%;
+  // the tilt guard evens out some of the ungated frames' strain as well).
   for (const std::string name : {"horse-animations.glb", "CesiumMan.glb"}) {
     const Rig& rig = test::rigNamed(name);
     checkCreaseGateStrain(name, rig, sharedFields(name), clipPoses(rig, 4),
-                          0.12);
+                          0.08);
   }
 }
 

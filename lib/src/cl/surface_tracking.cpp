@@ -967,6 +967,8 @@ void ClSurfaceTracking::limitStrain() {
         weigh_triangles_.setArg(4, fold_corners_);
         weigh_triangles_.setArg(5, fold_frames_);
         weigh_triangles_.setArg(6, triangle_weights_);
+        weigh_triangles_.setArg(7, tiltGuardCosine(options_));
+        weigh_triangles_.setArg(8, tiltGuardScale(options_));
         launch(weigh_triangles_, kStrainLimit, triangle_count_);
         weigh_folds_.setArg(0, n);
         weigh_folds_.setArg(1, fold_offsets_);

@@ -360,7 +360,35 @@ float foldWeight(const Eigen::Vector3f& now, const FoldFrame& frame) {
          foldRamp(-dot3(now, frame.skinned) / length) * frame.allowance;
 }
 
+// The tilt guard's test: how far the triangle's normal `now` turned past
+// `cosine` from both its skinned unit normal and the unit sum of its
+// corners' skinned normals (each ramped as in foldWeight), times the frame's
+// allowance.
+float tiltWeight(const Eigen::Vector3f& now, const FoldFrame& frame,
+                 float cosine) {
+  if (!(frame.allowance > 0.f)) return 0.f;
+  const float length = std::sqrt(dot3(now, now));
+  if (!(length > 0.f)) return 0.f;
+  return foldRamp(cosine - dot3(now, frame.expected) / length) *
+         foldRamp(cosine - dot3(now, frame.skinned) / length) * frame.allowance;
+}
+
 }  // namespace
+
+float tiltGuardCosine(const SurfaceTrackingOptions& options) {
+  return std::cos(options.tilt_guard_degrees * static_cast<float>(M_PI) /
+                  180.f);
+}
+
+float tiltGuardScale(const SurfaceTrackingOptions& options) {
+  const float span = options.strain_limit - options.fold_strain_limit;
+  if (!options.fold_guard || !(options.tilt_guard_degrees > 0.f) ||
+      !(span > 0.f))
+    return 0.f;
+  return std::min(
+      std::max((options.strain_limit - options.tilt_strain_limit) / span, 0.f),
+      1.f);
+}
 
 Validation SurfaceTrackingOptions::validate() const {
   auto bad = [](const std::string& what) { return Validation::fail(what); };
@@ -447,6 +475,12 @@ Validation SurfaceTrackingOptions::validate() const {
   if (fold_check_steps < 1 || fold_check_steps > 1000)
     return bad("fold_check_steps " + std::to_string(fold_check_steps) +
                ": expected 1..1000");
+  if (!(tilt_guard_degrees >= 0 && tilt_guard_degrees < 180))
+    return bad("tilt_guard_degrees " + std::to_string(tilt_guard_degrees) +
+               ": expected degrees in [0, 180) (0: off)");
+  if (!(tilt_strain_limit >= 0 && tilt_strain_limit <= 100))
+    return bad("tilt_strain_limit " + std::to_string(tilt_strain_limit) +
+               ": expected a fraction of the rest length in [0, 100]");
   if (!(history_keep >= 0.f && history_keep <= 1.f))
     return bad("history_keep " + std::to_string(history_keep) +
                ": expected 0..1");
@@ -1698,6 +1732,8 @@ void CpuSurfaceTracking::weighFolds(const Matrix3Xf& offsets) {
   const TriangleMatrix& triangles = mesh_->triangles;
   fold_weights_.assign(n, 0.f);
   folded_triangles_ = 0;
+  const float tilt_cosine = tiltGuardCosine(options_);
+  const float tilt_scale = tiltGuardScale(options_);
   for (Eigen::Index t = 0; t < triangles.rows(); ++t) {
     int r[3];
     Eigen::Vector3f p[3];
@@ -1705,8 +1741,13 @@ void CpuSurfaceTracking::weighFolds(const Matrix3Xf& offsets) {
       r[c] = rings.representative[triangles(t, c)];
       p[c] = (skinned_.row(r[c]) + offsets.row(r[c])).transpose();
     }
-    const float weight =
-        foldWeight(triangleNormal(p[0], p[1], p[2]), fold_frames_[t]);
+    const Eigen::Vector3f now = triangleNormal(p[0], p[1], p[2]);
+    float weight = foldWeight(now, fold_frames_[t]);
+    // A tilted triangle weighs as a fold whose weight gives its edges the
+    // tilt strain limit (the limit falls linearly with the weight).
+    if (tilt_scale > 0.f)
+      weight = std::max(
+          weight, tilt_scale * tiltWeight(now, fold_frames_[t], tilt_cosine));
     if (!(weight > 0.f)) continue;
     ++folded_triangles_;
     for (const int c : r) fold_weights_[c] = std::max(fold_weights_[c], weight);

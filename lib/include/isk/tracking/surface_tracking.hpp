@@ -77,6 +77,13 @@
 // weights found again every fold_check_steps steps. A contact surface keeps
 // its sharp offsets, since it flattens the skin without turning it over;
 // the fold-overs of a poorly fitted coarse mesh are smoothed out.
+// Tilt guard (tilt_guard_degrees, 60 by default, 0: off; our addition, see
+// docs/algorithm.md): with the fold guard, a triangle also weighs in when it
+// turned more than tilt_guard_degrees from its skinned normal and from its
+// corners' skinned normals (ramped as the fold test): its edges take a
+// limit between strain_limit and tilt_strain_limit. The spikes and crumples
+// of a poorly fitted part, which turn the skin steeply without folding it
+// over, are evened out.
 //
 // Volume restoration (volume_restore, on by default; our addition, see
 // docs/algorithm.md): after the smoothing, each closed connected component
@@ -281,6 +288,11 @@ struct SurfaceTrackingOptions {
   float fold_strain_limit = 0.f;
   int fold_rings = 2;
   int fold_check_steps = 4;
+  // The tilt guard (see above), within the fold guard: the turn of a
+  // triangle from its skinned normal past which it weighs in (degrees, 0:
+  // off), and the strain limit around such a triangle.
+  float tilt_guard_degrees = 60.f;
+  float tilt_strain_limit = 0.8f;
   // History-dependent tracking (a `start` given to begin): the share of its
   // offset from the skinned position a vertex keeps when it starts from its
   // last result, x = s + history_keep (start - s), in [0, 1]: a contact
@@ -297,6 +309,13 @@ struct SurfaceTrackingOptions {
   // Names the first bad parameter and its valid range.
   Validation validate() const;
 };
+
+// The tilt guard's threshold, the cosine of tilt_guard_degrees; and the
+// fold weight a fully tilted triangle takes, so that its edges' limit,
+// strain_limit + w (fold_strain_limit - strain_limit), is tilt_strain_limit
+// (clamped between the two; 0 when the tilt or the fold guard is off).
+float tiltGuardCosine(const SurfaceTrackingOptions& options);
+float tiltGuardScale(const SurfaceTrackingOptions& options);
 
 // Per-vertex state of the march, kept between stages (on the device for
 // ClSurfaceTracking).
