@@ -668,13 +668,14 @@ TEST(SurfaceTracking, StrainLimitPullsSpikesBackOnAssets) {
   }
 }
 
-// Triangles folded over by the fold guard's rule (a weight above 0): the
-// normal at `x` opposes both the skinned triangle's and the sum of the
-// corners' skinned normals, and the skinned triangle does not oppose that sum
-// by more than the ramp (representatives' rows).
-int foldedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
-                    const Matrix3Xf& skinned, const Matrix3Xf& normals) {
-  int folded = 0;
+// Triangles of x (representatives' rows) for which `test(now, was,
+// expected)` holds: the unit normals at x and at the skinned positions, and
+// the unit sum of the corners' skinned normals.
+template <typename Test>
+int countTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
+                   const Matrix3Xf& skinned, const Matrix3Xf& normals,
+                   Test test) {
+  int count = 0;
   auto normal = [&](const Matrix3Xf& p, const int* r) {
     return Eigen::Vector3f(
         (p.row(r[1]) - p.row(r[0])).cross(p.row(r[2]) - p.row(r[0])));
@@ -683,17 +684,80 @@ int foldedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
     int r[3];
     for (int c = 0; c < 3; ++c)
       r[c] = mesh.rings.representative[mesh.triangles(t, c)];
-    const Eigen::Vector3f now = normal(x, r).normalized();
-    const Eigen::Vector3f was = normal(skinned, r).normalized();
     const Eigen::Vector3f expected =
         Eigen::Vector3f(normals.row(r[0]) + normals.row(r[1]) +
                         normals.row(r[2]))
             .normalized();
-    if (now.dot(expected) < 0.f && now.dot(was) < 0.f &&
-        was.dot(expected) > -ISK_FOLD_RAMP)
-      ++folded;
+    count += test(normal(x, r).normalized(), normal(skinned, r).normalized(),
+                  expected);
   }
-  return folded;
+  return count;
+}
+
+// Triangles folded over by the fold guard's rule (a weight above 0): the
+// normal at `x` opposes both the skinned triangle's and the sum of the
+// corners' skinned normals, and the skinned triangle does not oppose that sum
+// by more than the ramp.
+int foldedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
+                    const Matrix3Xf& skinned, const Matrix3Xf& normals) {
+  return countTriangles(
+      mesh, x, skinned, normals,
+      [](const Eigen::Vector3f& now, const Eigen::Vector3f& was,
+         const Eigen::Vector3f& expected) {
+        return now.dot(expected) < 0.f && now.dot(was) < 0.f &&
+               was.dot(expected) > -ISK_FOLD_RAMP;
+      });
+}
+
+// Triangles turned more than acos(cosine) from both their skinned normal
+// and the sum of their corners' skinned normals (the tilt guard's test,
+// unramped).
+int tiltedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
+                    const Matrix3Xf& skinned, const Matrix3Xf& normals,
+                    float cosine) {
+  return countTriangles(
+      mesh, x, skinned, normals,
+      [cosine](const Eigen::Vector3f& now, const Eigen::Vector3f& was,
+               const Eigen::Vector3f& expected) {
+        return now.dot(expected) < cosine && now.dot(was) < cosine;
+      });
+}
+
+// Dual quaternion skinning of `pose` on the device and its frame read
+// back: both backends' steps start from it (see checkStages).
+struct DeviceSkinned {
+  DeviceSkinned(const Rig& rig, const TransformList& pose)
+      : dqs(test::sharedContext(), rig.mesh, rig.weights,
+            rig.skeleton.jointCount()) {
+    dqs.run(SkinningMethod::kDualQuaternion, pose, false);
+    dqs.readPositions(positions);
+    dqs.readNormals(normals);
+  }
+  ClSkinning dqs;
+  Matrix3Xf positions, normals;
+};
+
+// The strain limit's steps on OpenCL from the state `x` (with the reference's
+// `states` and `prev`) against the reference's result `expected`.
+void expectDeviceStrainLimitMatches(
+    const Rig& rig, const std::shared_ptr<const ImplicitFields>& f,
+    const TrackingMesh& mesh, const SurfaceTrackingOptions& options,
+    const TransformList& pose, ClSkinning& device_dqs, const Matrix3Xf& x,
+    const std::vector<TrackState>& states, const Matrix4Xf& prev,
+    const Matrix3Xf& expected) {
+  const auto context = test::sharedContext();
+  ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
+                           FieldStorage::kAuto, &f->composition);
+  ClSurfaceTracking cl(fields, mesh, options);
+  cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
+  detail::TrackingTestAccess::setState(cl, x, states, prev);
+  cl.limitStrain();
+  Matrix3Xf positions;
+  cl.readPositions(positions);
+  const test::RowMismatch worst = test::largestRowDistance(positions, expected);
+  EXPECT_LE(worst.distance,
+            stageTolerance(*context) * rig.boundingBoxDiagonal())
+      << "OpenCL against the reference: vertex " << worst.row;
 }
 
 // The fold guard on a fold made by hand: the tracked vertex with the most
@@ -708,14 +772,9 @@ int foldedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
 void checkFoldGuard(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
                     const TransformList& pose) {
   const TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
-  const auto context = test::sharedContext();
-  // Both backends from the device's skinned frame (see checkStages).
-  ClSkinning device_dqs(context, rig.mesh, rig.weights,
-                        rig.skeleton.jointCount());
-  device_dqs.run(SkinningMethod::kDualQuaternion, pose, false);
-  Matrix3Xf skinned, normals;
-  device_dqs.readPositions(skinned);
-  device_dqs.readNormals(normals);
+  DeviceSkinned device(rig, pose);
+  const Matrix3Xf& skinned = device.positions;
+  const Matrix3Xf& normals = device.normals;
   SurfaceTrackingOptions unguarded;
   unguarded.fold_guard = false;
   CpuSurfaceTracking with(f->grids, &f->composition, mesh);
@@ -776,19 +835,8 @@ void checkFoldGuard(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   EXPECT_LT((with.positions().row(fold) - skinned.row(fold)).norm(),
             (without.positions().row(fold) - skinned.row(fold)).norm());
   // OpenCL: the same steps from the same state.
-  ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
-                           FieldStorage::kAuto, &f->composition);
-  ClSurfaceTracking cl(fields, mesh);
-  cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
-  detail::TrackingTestAccess::setState(cl, folded, states, prev);
-  cl.limitStrain();
-  Matrix3Xf positions;
-  cl.readPositions(positions);
-  const test::RowMismatch worst =
-      test::largestRowDistance(positions, with.positions());
-  EXPECT_LE(worst.distance,
-            stageTolerance(*context) * rig.boundingBoxDiagonal())
-      << "OpenCL against the reference: vertex " << worst.row;
+  expectDeviceStrainLimitMatches(rig, f, mesh, {}, pose, device.dqs, folded,
+                                 states, prev, with.positions());
 }
 
 TEST(SurfaceTracking, FoldGuardSmoothsFoldsOutOnProceduralRigs) {
@@ -799,49 +847,26 @@ TEST(SurfaceTracking, FoldGuardSmoothsFoldsOutOnProceduralRigs) {
   }
 }
 
+// An asset's fields with every piece tracked (RobotExpressive's plates are
+// left rigid by default): a vertex dragged by hand lies on a skin the
+// guards smooth, the robot's torso rather than a finger of its hands.
+std::shared_ptr<const ImplicitFields> everyPieceTracked(const std::string& name,
+                                                        const Rig& rig) {
+  if (rigidPieceVertices(rig).empty()) return sharedFields(name);
+  ImplicitFieldsOptions tracked;
+  tracked.rigid_pieces = RigidPieces::kTracked;
+  return std::make_shared<const ImplicitFields>(
+      buildImplicitFields(rig, tracked));
+}
+
 TEST(SurfaceTracking, FoldGuardSmoothsFoldsOutOnAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("fold guard on assets");
   for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     const Rig& rig = test::rigNamed(name);
-    // Every piece tracked (RobotExpressive's plates are left rigid by
-    // default): the dragged vertex lies on a skin the guard smooths, the
-    // robot's torso rather than a finger of its hands.
-    ImplicitFieldsOptions tracked;
-    tracked.rigid_pieces = RigidPieces::kTracked;
-    const auto fields = rigidPieceVertices(rig).empty()
-                            ? sharedFields(name)
-                            : std::make_shared<const ImplicitFields>(
-                                  buildImplicitFields(rig, tracked));
-    checkFoldGuard(rig, fields, clipPoses(rig, 5)[2]);
+    checkFoldGuard(rig, everyPieceTracked(name, rig), clipPoses(rig, 5)[2]);
   }
-}
-
-// Triangles of x turned more than acos(cosine) from both their skinned
-// normal and the sum of their corners' skinned normals (the tilt guard's
-// test, unramped).
-int tiltedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
-                    const Matrix3Xf& skinned, const Matrix3Xf& normals,
-                    float cosine) {
-  int tilted = 0;
-  auto normal = [&](const Matrix3Xf& p, const int* r) {
-    return Eigen::Vector3f(
-        (p.row(r[1]) - p.row(r[0])).cross(p.row(r[2]) - p.row(r[0])));
-  };
-  for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
-    int r[3];
-    for (int c = 0; c < 3; ++c)
-      r[c] = mesh.rings.representative[mesh.triangles(t, c)];
-    const Eigen::Vector3f now = normal(x, r).normalized();
-    const Eigen::Vector3f was = normal(skinned, r).normalized();
-    const Eigen::Vector3f expected =
-        Eigen::Vector3f(normals.row(r[0]) + normals.row(r[1]) +
-                        normals.row(r[2]))
-            .normalized();
-    if (now.dot(expected) < cosine && now.dot(was) < cosine) ++tilted;
-  }
-  return tilted;
 }
 
 // The tilt guard on a spike made by hand: the tracked vertex with the most
@@ -858,13 +883,9 @@ int tiltedTriangles(const TrackingMesh& mesh, const Matrix3Xf& x,
 bool checkTiltGuard(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
                     const TransformList& pose) {
   const TrackingMesh mesh = TrackingMesh::build(rig.mesh, *f);
-  const auto context = test::sharedContext();
-  ClSkinning device_dqs(context, rig.mesh, rig.weights,
-                        rig.skeleton.jointCount());
-  device_dqs.run(SkinningMethod::kDualQuaternion, pose, false);
-  Matrix3Xf skinned, normals;
-  device_dqs.readPositions(skinned);
-  device_dqs.readNormals(normals);
+  DeviceSkinned device(rig, pose);
+  const Matrix3Xf& skinned = device.positions;
+  const Matrix3Xf& normals = device.normals;
   SurfaceTrackingOptions guarded, unguarded;
   guarded.strain_limit = unguarded.strain_limit = 3.f;
   guarded.tilt_guard_degrees = 60.f;
@@ -953,19 +974,8 @@ bool checkTiltGuard(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   EXPECT_LT(tilts_with, tilts_without);
   EXPECT_LT(height_with, 0.9f * pushed);
   // OpenCL: the same steps from the same state.
-  ClFieldEvaluation fields(context, f->grids, rig.skeleton.jointCount(),
-                           FieldStorage::kAuto, &f->composition);
-  ClSurfaceTracking cl(fields, mesh, guarded);
-  cl.begin(pose, device_dqs.positionsBuffer(), device_dqs.normalsBuffer());
-  detail::TrackingTestAccess::setState(cl, spiked, states, prev);
-  cl.limitStrain();
-  Matrix3Xf positions;
-  cl.readPositions(positions);
-  const test::RowMismatch worst =
-      test::largestRowDistance(positions, with.positions());
-  EXPECT_LE(worst.distance,
-            stageTolerance(*context) * rig.boundingBoxDiagonal())
-      << "OpenCL against the reference: vertex " << worst.row;
+  expectDeviceStrainLimitMatches(rig, f, mesh, guarded, pose, device.dqs,
+                                 spiked, states, prev, with.positions());
   return true;
 }
 
@@ -985,14 +995,9 @@ TEST(SurfaceTracking, TiltGuardBringsSpikesDownOnAssets) {
   for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     const Rig& rig = test::rigNamed(name);
-    ImplicitFieldsOptions tracked;
-    tracked.rigid_pieces = RigidPieces::kTracked;
-    const auto fields = rigidPieceVertices(rig).empty()
-                            ? sharedFields(name)
-                            : std::make_shared<const ImplicitFields>(
-                                  buildImplicitFields(rig, tracked));
     std::cout << "[ tilt guard ] " << name << "\n";
-    checked += checkTiltGuard(rig, fields, clipPoses(rig, 5)[2]);
+    checked +=
+        checkTiltGuard(rig, everyPieceTracked(name, rig), clipPoses(rig, 5)[2]);
   }
   EXPECT_GE(checked, 3);
 }
