@@ -648,7 +648,7 @@ class CpuSurfaceTracking {
   const Matrix4Xf& relaxFrames() const { return relax_frames_; }
   // #V in [0, 1]: the fold guard's weight of each vertex at its last check
   // (after limitStrain()): the largest fold weight of the triangles within
-  // fold_rings rings of it.
+  // fold_rings rings of it (a tilted triangle's scaled by tiltGuardScale).
   const std::vector<float>& foldWeights() const { return fold_weights_; }
   // Volume restoration's last run (after restoreVolume()): lambda per group
   // (TrackingMesh::volume_groups) and each vertex's weight w (#V).
@@ -663,8 +663,8 @@ class CpuSurfaceTracking {
   const std::vector<float>& bulgeFractions() const { return bulge_fractions_; }
   const std::vector<float>& bulgeBand() const { return bulge_band_; }
   const std::vector<float>& bulgeWeights() const { return bulge_weights_; }
-  // How many triangles the fold guard's last check found folded over (a
-  // weight above 0).
+  // How many triangles the fold guard's last check found folded over or,
+  // with the tilt guard, tilted (a weight above 0).
   int foldedTriangleCount() const { return folded_triangles_; }
   // Milliseconds per stage of the last run().
   const TrackingStageTimes& lastTimes() const { return times_; }
