@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <mutex>
 #include <random>
@@ -27,10 +28,27 @@ namespace isk::test {
 
 const std::vector<std::string>& assetNames() {
   static const std::vector<std::string> names = {
-      "RiggedSimple.dae",    "anim_test.x",
-      "CesiumMan.glb",       "human-addon-animations.glb",
-      "RobotExpressive.glb", "animation_with_skeleton.fbx",
-      "quad_skin.glb"};
+      "RiggedSimple.dae",     "anim_test.x",
+      "CesiumMan.glb",        "human-addon-animations.glb",
+      "RobotExpressive.glb",  "animation_with_skeleton.fbx",
+      "quad_skin.glb",        "fox-animations.glb",
+      "horse-animations.glb", "dragon-animations.glb",
+      "human-female.glb"};
+  return names;
+}
+
+std::vector<std::string> assetNamesExcept(
+    const std::vector<LeftOutAsset>& left_out) {
+  std::vector<std::string> names;
+  for (const std::string& name : assetNames()) {
+    bool kept = true;
+    for (const LeftOutAsset& out : left_out)
+      if (out.name == name) {
+        std::cout << "[ left out ] " << name << ": " << out.reason << "\n";
+        kept = false;
+      }
+    if (kept) names.push_back(name);
+  }
   return names;
 }
 

@@ -22,6 +22,16 @@ namespace isk::test {
 // Every asset of the shared data folder that the tests run on.
 const std::vector<std::string>& assetNames();
 
+// An asset a check leaves out, and why (measured).
+struct LeftOutAsset {
+  std::string name;
+  std::string reason;
+};
+// assetNames() less those `left_out` names; prints each one left out with
+// its reason, so that a run says what a check did not cover.
+std::vector<std::string> assetNamesExcept(
+    const std::vector<LeftOutAsset>& left_out);
+
 // Loads an asset of the data folder (cached per process; each test copies).
 const Rig& loadAsset(const std::string& file);
 
