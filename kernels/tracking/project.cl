@@ -412,11 +412,25 @@ ISK_INLINE bool contact_stop(const float3 unit, const float4 prev,
          unit.x * prev.x + unit.y * prev.y + unit.z * prev.z < cos_contact;
 }
 
+// The contact march's stop: the contact function's gradient (unit) turned
+// back, by more than 90 degrees, since the vertex's last step towards the
+// contact surface (frame: that step's c and unit normal). The march passed
+// the point nearest to a contact surface it cannot reach (c has a minimum
+// above 0 there); Newton steps about that minimum flip direction at every
+// step and leave the vertex wherever the frame's last step does, so it
+// stops there, at a contact.
+ISK_INLINE bool contact_march_stop(const float3 unit, const float prev_kind,
+                                   const float4 frame) {
+  return prev_kind == ISK_GRADIENT_TO_CONTACT &&
+         unit.x * frame.y + unit.y * frame.z + unit.z * frame.w < 0.0f;
+}
+
 // The contact by home field: a vertex that another part's field has
 // entered (by `entered` over its rest margin, more than contact_entry) up
 // to home_floor (h + entered >= its part's surface value less
 // contact_home_slack) marches to the contact surface c = entered +
-// contact_gap = 0 instead of its iso value, and stops there; unless its
+// contact_gap = 0 instead of its iso value, and stops there, or where its
+// gradient turns back (contact_march_stop); unless its
 // home field h is below home_minimum (its part's surface value less
 // contact_home_reach): skinning carried it out of its own part, and it stops
 // where it is, converged. ISK_CONTACT_MARCH_NONE: not held, the paper's
@@ -448,6 +462,8 @@ ISK_INLINE int march_to_contact(float3* x, float4* prev, float4* frame,
   const float3 gc = other.yzw - h.yzw;
   const float gc_len = sqrt(gc.x * gc.x + gc.y * gc.y + gc.z * gc.z);
   if (!(gc_len > min_gradient)) return ISK_TRACK_LOST;
+  if (contact_march_stop(gc / gc_len, prev->w, *frame))
+    return ISK_TRACK_CONTACT;
   prev->w = ISK_GRADIENT_TO_CONTACT;
   *frame = (float4)(c, gc / gc_len);  // the contact surface c = 0
   *x = newton_step(*x, gc / gc_len, -c, gc_len, sigma, max_step);

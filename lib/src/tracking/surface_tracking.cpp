@@ -51,11 +51,25 @@ bool contactStop(const Eigen::Vector3f& unit, const Eigen::Vector4f& prev,
   return prev[3] == ISK_GRADIENT_STEP && unit.dot(prev.head<3>()) < cos_contact;
 }
 
+// The contact march's stop: the contact function's gradient (unit) turned
+// back, by more than 90 degrees, since the vertex's last step towards the
+// contact surface (frame: that step's c and unit normal). The march passed
+// the point nearest to a contact surface it cannot reach (c has a minimum
+// above 0 there); Newton steps about that minimum flip direction at every
+// step and leave the vertex wherever the frame's last step does, so it
+// stops there, at a contact.
+bool contactMarchStop(const Eigen::Vector3f& unit, float prev_kind,
+                      const Eigen::Vector4f& frame) {
+  return prev_kind == ISK_GRADIENT_TO_CONTACT &&
+         unit.dot(frame.tail<3>()) < 0.f;
+}
+
 // The contact by home field: a vertex that another part's field has
 // entered (by `entered` over its rest margin, more than contact_entry) up
 // to home_floor (h + entered >= its part's surface value less
 // contact_home_slack) marches to the contact surface c = entered +
-// contact_gap = 0 instead of its iso value, and stops there; unless its
+// contact_gap = 0 instead of its iso value, and stops there, or where its
+// gradient turns back (contactMarchStop); unless its
 // home field h is below home_minimum (its part's surface value less
 // contact_home_reach): skinning carried it out of its own part, and it stops
 // where it is, converged.
@@ -89,6 +103,8 @@ int marchToContact(Eigen::Vector3f* x, float* prev_kind, Eigen::Vector4f* frame,
   const Eigen::Vector3f gc = (home.other - home.home).tail<3>();
   const float gc_len = gc.norm();
   if (!(gc_len > min_gradient)) return static_cast<int>(TrackState::kLost);
+  if (contactMarchStop(gc / gc_len, *prev_kind, *frame))
+    return static_cast<int>(TrackState::kContact);
   *prev_kind = ISK_GRADIENT_TO_CONTACT;
   // The relaxation's surface: the contact surface c = 0.
   *frame << c, gc.x() / gc_len, gc.y() / gc_len, gc.z() / gc_len;

@@ -132,7 +132,10 @@
 // than at rest: o - h - margin > contact_entry, with f > iso, and o - margin
 // reaches its part's surface value less contact_home_slack) marches instead
 // to the contact surface between the two parts, by Newton steps on c = o - h -
-// margin + contact_gap along grad(o - h), and stops there as a contact. The
+// margin + contact_gap along grad(o - h), and stops there as a contact, or
+// where grad(o - h) turns back between two of its steps: c has a minimum
+// above 0 there (the surface is out of reach), about which Newton steps
+// would flip direction at every step and leave the vertex anywhere. The
 // paper's march would carry such a vertex out through the far side of the other
 // part when skinning put it past that part's bone (deep folds, Figure 14(d)),
 // and piles both parts' vertices on one surface at a crease; contact_gap (field
