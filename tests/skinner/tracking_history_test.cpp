@@ -156,22 +156,7 @@ TEST(TrackingHistory, FramesOnProceduralRigs) {
 TEST(TrackingHistory, FramesOnEverySharedAsset) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("the assets' history frames");
-  // On the newer assets the OpenCL history frames leave the reference's
-  // after a few frames of the bend of every joint (measured at 5e-4 of the
-  // diagonal: the fox 7% and 22% of its vertices on frames 4 and 5, the
-  // horse up to 23%, the dragon up to 16%, human-female 5%). Not the
-  // history's doing: the 2013 frames of the same bend part ways too where
-  // skin presses on skin (the fox's frame 4: 10% of its vertices, about its
-  // head and neck, up to 3.3e-3 of the diagonal).
-  const std::string reason =
-      "the OpenCL history frames leave the reference's after a few frames "
-      "of the bend, in its contacts, as its 2013 frames do (5-23% of the "
-      "vertices)";
-  for (const std::string& file :
-       test::assetNamesExcept({{"fox-animations.glb", reason},
-                               {"horse-animations.glb", reason},
-                               {"dragon-animations.glb", reason},
-                               {"human-female.glb", reason}})) {
+  for (const std::string& file : test::assetNames()) {
     SCOPED_TRACE(file);
     checkHistoryFrames(file, bendSequence(test::rigNamed(file), 60.f, 6));
   }

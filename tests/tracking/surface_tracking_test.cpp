@@ -126,20 +126,6 @@ constexpr double kFlipFraction = 0.002;
 // copies, and by the strain limit's fold and tilt guards over the rings
 // around a turned triangle (CesiumMan's half-precision frame: 35 of 2,612).
 constexpr double kSpreadFlipFraction = 0.02;
-// The assets whose whole frames over test::clipPoses are compared with the
-// reference. human-female.glb has no clip: on its stand-in, every joint bent
-// towards 86 degrees, OpenCL and the reference part ways on 4-7% of its
-// 24,037 vertices at the full bend, all in its hands, whose every finger
-// joint bends into the next finger (up to 4e-3 of the diagonal; 7 vertices
-// beyond 1e-4 a frame earlier). Its frames at the coarse settings, its
-// stages and its half-precision frames near the float ones are compared.
-std::vector<std::string> frameComparisonAssets() {
-  return test::assetNamesExcept(
-      {{"human-female.glb",
-        "whole frames at the full stand-in bend: OpenCL and the reference "
-        "part ways on 4-7% of its vertices, in its curled fingers"}});
-}
-
 TEST(SurfaceTrackingOptions, ValidateNamesTheBadParameter) {
   EXPECT_TRUE(SurfaceTrackingOptions().validate());
   SurfaceTrackingOptions o;
@@ -3339,7 +3325,7 @@ TEST(ImplicitSkinner, OpenClFramesMatchTheReferenceOnProceduralRigs) {
 TEST(ImplicitSkinner, OpenClFramesMatchTheReferenceOnAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("implicit frames on assets");
-  for (const std::string& name : frameComparisonAssets()) {
+  for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkFrames(test::rigNamed(name), sharedFields(name), 4);
   }
@@ -3386,7 +3372,7 @@ TEST(ImplicitSkinner, PaperRelaxationFramesMatchTheReferenceOnAssets) {
         "the paper's relaxation on assets");
   ImplicitSkinnerOptions options;
   options.tracking.skinned_ring_relaxation = false;
-  for (const std::string& name : frameComparisonAssets()) {
+  for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkFrames(test::rigNamed(name), sharedFields(name), 2, options);
   }
@@ -3408,7 +3394,7 @@ TEST(ImplicitSkinner, UngatedCreaseFramesMatchTheReferenceOnAssets) {
     GTEST_SKIP() << test::missingAssetsMessage("ungated creases on assets");
   ImplicitSkinnerOptions options;
   options.tracking.crease_gate = false;
-  for (const std::string& name : frameComparisonAssets()) {
+  for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkFrames(test::rigNamed(name), sharedFields(name), 2, options);
   }
@@ -3450,7 +3436,7 @@ TEST(ImplicitSkinner, LargerStepFramesMatchTheReferenceOnAssets) {
     GTEST_SKIP() << test::missingAssetsMessage("larger-step frames on assets");
   ImplicitSkinnerOptions options;
   options.tracking.sigma = 0.7f;
-  for (const std::string& name : frameComparisonAssets()) {
+  for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkFrames(test::rigNamed(name), sharedFields(name), 4, options);
   }
@@ -3745,7 +3731,7 @@ TEST(HalfPrecisionGrids, OpenClFramesMatchTheReferenceOnProceduralRigs) {
 TEST(HalfPrecisionGrids, OpenClFramesMatchTheReferenceOnAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("half-precision frames");
-  for (const std::string& name : frameComparisonAssets()) {
+  for (const std::string& name : test::assetNames()) {
     SCOPED_TRACE(name);
     checkFrames(test::rigNamed(name), halfFields(name), 4);
   }
