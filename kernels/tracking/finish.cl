@@ -15,3 +15,13 @@ __kernel void track_copy_duplicates(const uint vertex_count,
   if (v >= vertex_count) return;
   vstore3(vload3(representative[v], positions_in), v, positions_out);
 }
+
+// The results moved by `offset` (x, y, z): a skinner tracks its frame about
+// the pose's anchor and adds the anchor back (isk/rig/pose_anchor.hpp).
+__kernel void track_translate(const uint vertex_count,
+                              __global float* positions, const float x,
+                              const float y, const float z) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  vstore3(vload3(v, positions) + (float3)(x, y, z), v, positions);
+}

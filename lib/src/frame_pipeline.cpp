@@ -5,6 +5,7 @@
 
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/rig/pose_anchor.hpp"
 
 namespace isk::detail {
 
@@ -24,8 +25,16 @@ DeviceFramePipeline::DeviceFramePipeline(
       *field_evaluation, *tracking_mesh, options.tracking);
 }
 
-void DeviceFramePipeline::run(const TransformList& pose) {
+void DeviceFramePipeline::run(const TransformList& given_pose) {
   times = {};
+  anchor = anchoring ? poseAnchor(given_pose, anchor_centers, anchor_step)
+                     : Eigen::Vector3f::Zero();
+  const bool moved = !anchor.isZero();
+  if (moved) {
+    anchored_pose = given_pose;
+    subtractAnchor(anchor, anchored_pose);
+  }
+  const TransformList& pose = moved ? anchored_pose : given_pose;
   // Tracking is enqueued behind the skinning without a wait between them.
   skinning->enqueue(options.base_skinning, pose, /*recompute_normals=*/false);
   const bool from_history = history && history->next(pose);
@@ -41,12 +50,20 @@ void DeviceFramePipeline::run(const TransformList& pose) {
                           context->info().describe());
     }
   }
+  if (moved) tracking->translate(anchor);
   skinning->collectTimes();
   times.upload_ms =
       skinning->lastTimes().upload_ms + field_evaluation->lastUploadMs();
   times.skinning_ms = skinning->lastTimes().skinning_ms;
   times.tracking = tracking->lastTimes();
   has_run = true;
+}
+
+void DeviceFramePipeline::enableAnchoring(
+    std::vector<Eigen::Vector3f> rest_centers, float step) {
+  anchoring = true;
+  anchor_centers = std::move(rest_centers);
+  anchor_step = step;
 }
 
 void DeviceFramePipeline::enableHistory(std::vector<int> parents) {

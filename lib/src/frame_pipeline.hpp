@@ -25,6 +25,9 @@ struct DeviceFramePipeline {
   // One frame: #joints skinning transforms; returns when the device is
   // done, with `times` set.
   void run(const TransformList& skinning);
+  // Frames computed about the pose's anchor (isk/rig/pose_anchor.hpp): one
+  // character, its #joints rest centres and its anchor step.
+  void enableAnchoring(std::vector<Eigen::Vector3f> rest_centers, float step);
   // History-dependent tracking from the next frame on (one character:
   // `parents` are its joints'; isk/tracking/tracking_history.hpp).
   void enableHistory(std::vector<int> parents);
@@ -40,6 +43,14 @@ struct DeviceFramePipeline {
   std::unique_ptr<ClSurfaceTracking> tracking;
   ImplicitStageTimes times;
   bool has_run = false;
+  // Anchoring (off: the frame is computed in the given coordinates): the
+  // joints' rest centres, the step, the last frame's anchor and pose with
+  // the anchor taken out.
+  bool anchoring = false;
+  std::vector<Eigen::Vector3f> anchor_centers;
+  float anchor_step = 1.f;
+  Eigen::Vector3f anchor = Eigen::Vector3f::Zero();
+  TransformList anchored_pose;
   // History mode (null: the 2013 mode): when a frame starts from the last,
   // the last result carried back to rest space and the start skinned from
   // it (#V * 3 floats each).

@@ -6,6 +6,7 @@
 #include "frame_pipeline.hpp"
 #include "isk/core/error.hpp"
 #include "isk/core/stopwatch.hpp"
+#include "isk/rig/pose_anchor.hpp"
 #include "skinner_fields.hpp"
 #include "usability.hpp"
 
@@ -61,6 +62,9 @@ ImplicitSkinner::ImplicitSkinner(std::shared_ptr<ClContext> context,
       std::vector<ClFieldEvaluation::FieldGroup>{
           {&fields_->grids, joints, &fields_->composition, 1}},
       detail::buildSkinnerTrackingMesh(rig, *fields_), options);
+  if (options.anchor_pose)
+    pipeline_->enableAnchoring(restCenters(rig.mesh.positions, joints),
+                               anchorStep(rig.boundingBoxDiagonal()));
   if (options.tracking_mode == TrackingMode::kHistory)
     pipeline_->enableHistory(jointParents(rig.skeleton));
 }
@@ -98,6 +102,9 @@ const cl::Buffer& ImplicitSkinner::normalsBuffer() const {
 }
 int ImplicitSkinner::contactCount() {
   return usable("contactCount", true).tracking->contactCount();
+}
+Eigen::Vector3f ImplicitSkinner::anchor() const {
+  return usable("anchor", false).anchor;
 }
 const ImplicitStageTimes& ImplicitSkinner::lastTimes() const {
   return pipeline_ ? pipeline_->times : no_times_;
@@ -142,6 +149,11 @@ CpuImplicitSkinner::CpuImplicitSkinner(
                                             rig.skeleton.jointCount());
   tracking_ = std::make_unique<CpuSurfaceTracking>(
       fields_->grids, &fields_->composition, *tracking_mesh_, options.tracking);
+  if (options.anchor_pose) {
+    anchor_centers_ =
+        restCenters(rig.mesh.positions, rig.skeleton.jointCount());
+    anchor_step_ = anchorStep(rig.boundingBoxDiagonal());
+  }
   if (options.tracking_mode == TrackingMode::kHistory)
     history_ = std::make_unique<TrackingHistory>(jointParents(rig.skeleton),
                                                  options.history_reset_degrees);
@@ -152,9 +164,17 @@ void CpuImplicitSkinner::checkUsable(const char* what, bool needs_run) const {
                       tracking_ != nullptr, needs_run, has_run_);
 }
 
-void CpuImplicitSkinner::run(const TransformList& skinning) {
+void CpuImplicitSkinner::run(const TransformList& given_skinning) {
   checkUsable("run", false);
   times_ = {};
+  // Empty centres (anchor_pose off) give anchor zero.
+  anchor_ = poseAnchor(given_skinning, anchor_centers_, anchor_step_);
+  const bool moved = !anchor_.isZero();
+  if (moved) {
+    anchored_pose_ = given_skinning;
+    subtractAnchor(anchor_, anchored_pose_);
+  }
+  const TransformList& skinning = moved ? anchored_pose_ : given_skinning;
   skinning_->run(options_.base_skinning, skinning,
                  /*recompute_normals=*/false);
   const bool from_history = history_ && history_->next(skinning);
@@ -171,6 +191,7 @@ void CpuImplicitSkinner::run(const TransformList& skinning) {
   if (history_)
     unskinPoints(options_.base_skinning, skinning_->weights(), skinning,
                  tracking_->positions(), history_rest_);
+  if (moved) tracking_->translate(anchor_);
   times_.skinning_ms = skinning_->lastTimes().skinning_ms;
   times_.tracking = tracking_->lastTimes();
   has_run_ = true;

@@ -3133,6 +3133,21 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
       test::largestRowDistance(normals, cpu.normals());
   if (!chained)
     EXPECT_LT(worst.distance, 1e-3f) << "normals: vertex " << worst.row;
+  if (chained) return;
+  // The anchor added back (a skinner far out, isk/rig/pose_anchor.hpp): from
+  // the same positions, the same sums.
+  detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
+                                       cpu.previousGradients());
+  const Eigen::Vector3f offset(1024.f, -64.5f, 3.25f);
+  const Matrix3Xf before = cpu.positions();
+  cpu.translate(offset);
+  cl.translate(offset);
+  cl.readPositions(positions);
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    ASSERT_EQ(cpu.positions().row(v), before.row(v) + offset.transpose())
+        << "vertex " << v;
+    ASSERT_EQ(positions.row(v), cpu.positions().row(v)) << "vertex " << v;
+  }
 }
 
 TEST(ClSurfaceTracking, StagesMatchTheReferenceOnProceduralRigs) {

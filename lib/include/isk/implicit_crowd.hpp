@@ -17,8 +17,11 @@
 //   // characterOf(i)) of them
 //
 // The instances share one scene: each one's skinning transforms place it
-// (its root motion, or where the game puts it). Instances apart from each
-// other are skinned exactly as an ImplicitSkinner skins each alone (tests
+// (its root motion, or where the game puts it), in the scene's coordinates:
+// keep the scene near its origin (a lone ImplicitSkinner computes about
+// its pose's anchor instead, isk/rig/pose_anchor.hpp). Instances apart from
+// each other are skinned exactly as an ImplicitSkinner computing in the
+// same coordinates (anchor_pose off) skins each alone (tests
 // check it, vertex by vertex, for one character and for several of
 // different sizes: the tracking's lengths follow each vertex's own
 // character, TrackingMesh::vertex_diagonals). Where two instances overlap,

@@ -59,6 +59,11 @@ struct ImplicitSkinnerOptions {
   // (degrees, relative to its parent) since the last frame starts from
   // skinning, as the first frame does. [0, 180].
   float history_reset_degrees = 30.f;
+  // Each frame computed about its pose's anchor (isk/rig/pose_anchor.hpp),
+  // so that where the character stands does not change its deformation.
+  // Off: computed in the given coordinates, as ImplicitCrowd always does
+  // (its instances share one scene).
+  bool anchor_pose = true;
 
   // Names the first bad option (the fields' own options are validated by
   // buildImplicitFields).
@@ -112,6 +117,10 @@ class ImplicitSkinner {
   const cl::Buffer& normalsBuffer() const;
   // Vertices stopped at a contact in the last frame (reads the states).
   int contactCount();
+  // The last frame's anchor (zero before the first run, with anchor_pose
+  // off, or for a character near the origin). The parts below (skinning(),
+  // tracking()) hold that frame with the anchor taken out of its pose.
+  Eigen::Vector3f anchor() const;
 
   // Stage times of the last run() (readback: of the last reads).
   const ImplicitStageTimes& lastTimes() const;
@@ -178,6 +187,11 @@ class CpuImplicitSkinner {
   void readNormals(Matrix3Xf& out) const { out = normals(); }
   // Vertices stopped at a contact in the last frame.
   int contactCount() const;
+  // As ImplicitSkinner's.
+  Eigen::Vector3f anchor() const {
+    checkUsable("anchor", false);
+    return anchor_;
+  }
 
   const ImplicitStageTimes& lastTimes() const { return times_; }
   const ImplicitFields& fields() const {
@@ -211,6 +225,12 @@ class CpuImplicitSkinner {
   std::unique_ptr<CpuSurfaceTracking> tracking_;
   ImplicitStageTimes times_;
   bool has_run_ = false;
+  // Anchoring (options_.anchor_pose): the joints' rest centres, the step,
+  // the last frame's anchor and pose with the anchor taken out.
+  std::vector<Eigen::Vector3f> anchor_centers_;
+  float anchor_step_ = 1.f;
+  Eigen::Vector3f anchor_ = Eigen::Vector3f::Zero();
+  TransformList anchored_pose_;
   // History mode: when a frame starts from the last, and the last result
   // carried back to rest space (#V by 3).
   std::unique_ptr<TrackingHistory> history_;

@@ -35,6 +35,7 @@
 #include "isk/implicit_skinner.hpp"
 #include "isk/rig/animation.hpp"
 #include "isk/rig/pose.hpp"
+#include "isk/rig/pose_anchor.hpp"
 #include "isk/rig/rig.hpp"
 #include "isk/rig/skeleton.hpp"
 #include "isk/rig/skin_weights.hpp"

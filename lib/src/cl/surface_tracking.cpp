@@ -103,6 +103,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   grow_folds_ = cl::Kernel(fold_guard, "track_grow_folds");
   commit_folds_ = cl::Kernel(fold_guard, "track_commit_folds");
   copy_duplicates_ = cl::Kernel(finish, "track_copy_duplicates");
+  translate_ = cl::Kernel(finish, "track_translate");
   triangle_normals_kernel_ =
       cl::Kernel(context_->program("normals"), "triangle_normals");
   normals_kernel_ = cl::Kernel(context_->program("normals"), "vertex_normals");
@@ -1048,6 +1049,23 @@ void ClSurfaceTracking::finish() {
   } catch (const cl::Error& e) {
     throwClError(e,
                  "ClSurfaceTracking::finish on " + context_->info().describe());
+  }
+}
+
+void ClSurfaceTracking::translate(const Eigen::Vector3f& offset) {
+  checkBegun("translate");
+  try {
+    translate_.setArg(0, static_cast<cl_uint>(vertex_count_));
+    translate_.setArg(1, positions_[current_]);
+    translate_.setArg(2, offset.x());
+    translate_.setArg(3, offset.y());
+    translate_.setArg(4, offset.z());
+    launch(translate_, kNormals);
+    context_->queue().finish();
+    collectTimes();
+  } catch (const cl::Error& e) {
+    throwClError(
+        e, "ClSurfaceTracking::translate on " + context_->info().describe());
   }
 }
 

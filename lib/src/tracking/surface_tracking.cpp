@@ -1849,6 +1849,13 @@ void CpuSurfaceTracking::finish() {
   times_.normals_ms += millisecondsSince(start);
 }
 
+void CpuSurfaceTracking::translate(const Eigen::Vector3f& offset) {
+  checkBegun("translate");
+  const auto start = std::chrono::steady_clock::now();
+  positions_.rowwise() += offset.transpose();
+  times_.normals_ms += millisecondsSince(start);
+}
+
 void CpuSurfaceTracking::run(const TransformList& skinning,
                              const Matrix3Xf& skinned_positions,
                              const Matrix3Xf& skinned_normals,

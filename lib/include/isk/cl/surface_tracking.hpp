@@ -63,6 +63,10 @@ class ClSurfaceTracking {
   void run(const TransformList& skinning, const cl::Buffer& skinned_positions,
            const cl::Buffer& skinned_normals,
            const cl::Buffer* start = nullptr);
+  // After run(): the positions moved by `offset` (a skinner adds its pose's
+  // anchor back, isk/rig/pose_anchor.hpp); returns when the device is done,
+  // its time added to lastTimes()'s normals.
+  void translate(const Eigen::Vector3f& offset);
 
   // Blocking reads of the working state and of the results.
   void readPositions(Matrix3Xf& out);  // working positions (results after
@@ -166,7 +170,7 @@ class ClSurfaceTracking {
   cl::Kernel begin_, project_, relax_, beta_init_, beta_diffuse_, smooth_,
       limit_strain_, strain_offsets_, strain_positions_, fold_frames_kernel_,
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
-      copy_duplicates_, triangle_normals_kernel_, normals_kernel_,
+      copy_duplicates_, translate_, triangle_normals_kernel_, normals_kernel_,
       volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
       restore_correct_, untrack_, bulge_band_init_, bulge_band_grow_,
       bulge_clearance_, bulge_weights_, bulge_fractions_kernel_;

@@ -632,6 +632,9 @@ class CpuSurfaceTracking {
   // restoreVolume, limitStrain, finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
            const Matrix3Xf& skinned_normals, const Matrix3Xf* start = nullptr);
+  // After run(): the positions moved by `offset` (a skinner adds its pose's
+  // anchor back, isk/rig/pose_anchor.hpp), timed with the normals.
+  void translate(const Eigen::Vector3f& offset);
 
   // The working state: #V by 3 positions and normals (model space, normals
   // of unit length after finish()), #V states.
