@@ -233,11 +233,13 @@ void framesInTurn(int64_t frame, const Frame& run_frame, double& true_ms,
 // time of one frame with its read-back, means over the iterations) and
 // frame_over_all, their ratio; the stage counters are the lever's frames'.
 // 'half-grids', 'sigma-<s>', 'no-fold-guard', 'no-tilt-guard',
-// 'union-operator' and 'history-tracking' change the result on purpose
+// 'no-restore-again', 'union-operator' and 'history-tracking' change the
+// result on purpose
 // (half-precision grids; eq. 4's step size sigma instead of the paper's
 // 0.35, a speed / accuracy trade-off the paper leaves to the user; the
 // strain limit without its fold guard, or without its tilt guard, what the
-// guard costs; the union at every joint instead of the
+// guard costs; no second volume restoration after the strain limit, what
+// it costs; the union at every joint instead of the
 // default's blend at the limb joints, what the blend costs; each frame
 // started from the last, what the history mode costs): how far, the
 // counters
@@ -264,6 +266,7 @@ void implicitLever(benchmark::State& state, const Case& c, int device,
     options.tracking.sigma = std::stof(lever.substr(6));
   if (lever == "no-fold-guard") options.tracking.fold_guard = false;
   if (lever == "no-tilt-guard") options.tracking.tilt_guard_degrees = 0.f;
+  if (lever == "no-restore-again") options.tracking.restore_again_steps = 0;
   if (lever.rfind("strain-limit-steps-", 0) == 0)
     options.tracking.strain_limit_steps = std::stoi(lever.substr(19));
   if (lever == "history-tracking")
@@ -558,8 +561,8 @@ void registerImplicitBenchmarks() {
             "no-march-order", "no-occupied-cells", "no-value-bounds",
             "no-lane-tests", "no-active-vertices", "no-pair-bounds",
             "half-grids", "sigma-0.5", "sigma-0.7", "sigma-1", "no-fold-guard",
-            "no-tilt-guard", "strain-limit-steps-16", "union-operator",
-            "history-tracking"})
+            "no-tilt-guard", "strain-limit-steps-16", "no-restore-again",
+            "union-operator", "history-tracking"})
         registerGuarded(
             ("Levers/" + model.name + "/" + onDevice(lever, device.index))
                 .c_str(),

@@ -750,7 +750,8 @@ LEVERS = ("all", "no-neighbourhoods", "no-neighbourhood-cells",
           "no-lane-tests", "no-active-vertices", "no-pair-bounds",
           "half-grids", "sigma-0.5",
           "sigma-0.7", "sigma-1", "no-fold-guard", "no-tilt-guard",
-          "strain-limit-steps-16", "union-operator", "history-tracking")
+          "strain-limit-steps-16", "no-restore-again", "union-operator",
+          "history-tracking")
 
 
 def moved(run):
@@ -835,6 +836,11 @@ def levers_section(results):
               "(`SurfaceTrackingOptions::strain_limit_steps`, "
               "docs/algorithm.md), so that 'frame / all' below 1 is what "
               "the steps beyond 16 cost; and "
+              "'no-restore-again': every switch on, and no second volume "
+              "restoration after the strain limit "
+              "(`SurfaceTrackingOptions::restore_again_steps` 0, "
+              "docs/algorithm.md), so that 'frame / all' below 1 is what "
+              "the second restoration and its steps cost; and "
               "'union-operator': every switch on, and the fields composed "
               "with the union at every joint (the paper's default, "
               "`--operator union`) instead of the library's default, which "

@@ -250,6 +250,13 @@ std::vector<CLI::Option*> addTrackingOptions(CLI::App& app, Options& options) {
                      "implicit: steps of the strain limit (0: no limit)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str(),
+      app.add_option("--restore-again-steps", tracking.restore_again_steps,
+                     "implicit: after the strain limit, the volume "
+                     "restoration runs again (the limit takes back part of "
+                     "what it pushed out), followed by this many more steps "
+                     "of the limit (0: no second restoration)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str(),
       app.add_flag("!--no-fold-guard", tracking.fold_guard,
                    "implicit: no fold guard (the strain limit is the same "
                    "around triangles that folded over)"),

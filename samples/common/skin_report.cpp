@@ -152,6 +152,7 @@ nlohmann::json trackingSection(const SurfaceTrackingOptions& t) {
           {"contact_bulge_clearance", t.contact_bulge_clearance},
           {"strain_limit", t.strain_limit},
           {"strain_limit_steps", t.strain_limit_steps},
+          {"restore_again_steps", t.restore_again_steps},
           {"fold_guard", t.fold_guard},
           {"fold_strain_limit", t.fold_strain_limit},
           {"fold_rings", t.fold_rings},

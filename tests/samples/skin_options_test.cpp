@@ -70,7 +70,8 @@ TEST(IskSkinOptions, CommandLineFillsTheOptions) {
   const Options options = parse(
       "builtin:arm --method implicit --frames 7 --device opencl:1 --out o "
       "--report r.json --format ply --overwrite --rounds 3 --no-relaxation "
-      "--grid-precision half --import-timeout 5 --import-memory 64");
+      "--grid-precision half --import-timeout 5 --import-memory 64 "
+      "--restore-again-steps 4");
   EXPECT_EQ(options.input, "builtin:arm");
   EXPECT_EQ(options.method, "implicit");
   EXPECT_EQ(options.frames, 7);
@@ -81,6 +82,7 @@ TEST(IskSkinOptions, CommandLineFillsTheOptions) {
   EXPECT_TRUE(options.overwrite);
   EXPECT_EQ(options.tracking.rounds, 3);
   EXPECT_FALSE(options.tracking.relaxation);
+  EXPECT_EQ(options.tracking.restore_again_steps, 4);
   EXPECT_EQ(options.grid_precision, "half");
   EXPECT_EQ(options.import_timeout, 5);
   EXPECT_EQ(options.import_memory_mib, 64);

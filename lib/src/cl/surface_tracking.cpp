@@ -290,12 +290,16 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   context_->queue().enqueueFillBuffer(
       volume_ones_, 1.0f, 0,
       std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  volume_zeros_ = rw(std::max<size_t>(volume_group_count_, 1) * sizeof(float));
+  context_->queue().enqueueFillBuffer(
+      volume_zeros_, 0.0f, 0,
+      std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   context_->queue().enqueueFillBuffer(
       volume_fractions_, 0.0f, 0,
       std::max<size_t>(volume_group_count_, 1) * sizeof(float));
   bytes_ += n * sizeof(float) + n * sizeof(float) +
             (static_cast<size_t>(volume_triangle_chunks_count_) +
-             volume_vertex_chunks_count_ + 3 * volume_group_count_ + 5) *
+             volume_vertex_chunks_count_ + 4 * volume_group_count_ + 6) *
                 sizeof(float);
   // 0 until the first check, and always without the guard (where they
   // still reach the steps, multiplied by 0).
@@ -719,8 +723,12 @@ void ClSurfaceTracking::smooth() {
 
 void ClSurfaceTracking::restoreVolume() {
   checkBegun("restoreVolume");
-  const bool bulge =
-      options_.contact_bulge > 0.f && options_.contact_bulge_steps > 0;
+  restoreVolumeWith(/*contact_bulge=*/true);
+}
+
+void ClSurfaceTracking::restoreVolumeWith(bool contact_bulge) {
+  const bool bulge = contact_bulge && options_.contact_bulge > 0.f &&
+                     options_.contact_bulge_steps > 0;
   if (!(options_.volume_restore > 0.f) || volume_group_count_ == 0) {
     // The fractions read back as CpuSurfaceTracking's: 0.
     try {
@@ -848,11 +856,15 @@ void ClSurfaceTracking::restoreVolume() {
       bulge_fractions_kernel_.setArg(4, options_.contact_bulge);
       bulge_fractions_kernel_.setArg(5, bulge_fractions_);
       launch(bulge_fractions_kernel_, kVolume, volume_group_count_);
-    } else {
+    } else if (contact_bulge) {
       context_->queue().enqueueFillBuffer(
           bulge_fractions_, 0.0f, 0,
           std::max<size_t>(volume_group_count_, 1) * sizeof(float));
     }
+    // Without the bulge asked for, its band, weights and fractions stay
+    // those of the last restoration with it (CpuSurfaceTracking's too).
+    const cl::Buffer& bulge_fractions =
+        bulge ? bulge_fractions_ : volume_zeros_;
     restore_apply_.setArg(0, static_cast<cl_uint>(vertex_count_));
     restore_apply_.setArg(1, volume_groups_);
     restore_apply_.setArg(2, restore_weights_buffer_);
@@ -866,7 +878,7 @@ void ClSurfaceTracking::restoreVolume() {
     restore_apply_.setArg(10, positions);
     restore_apply_.setArg(11, static_cast<cl_int>(bulge));
     restore_apply_.setArg(12, bulge_weights_buffer_);
-    restore_apply_.setArg(13, bulge_fractions_);
+    restore_apply_.setArg(13, bulge_fractions);
     restore_apply_.setArg(14, options_.contact_bulge);
     launch(restore_apply_, kVolume);
     // The secant step back where a group went past its rest volume.
@@ -879,7 +891,7 @@ void ClSurfaceTracking::restoreVolume() {
     restore_correct_.setArg(5, volume_fractions_);
     restore_correct_.setArg(6, volume_previous_);
     restore_correct_.setArg(7, volume_back_);
-    restore_correct_.setArg(8, bulge_fractions_);
+    restore_correct_.setArg(8, bulge_fractions);
     launch(restore_correct_, kVolume, volume_group_count_);
     restore_apply_.setArg(3, volume_previous_);
     restore_apply_.setArg(4, volume_back_);
@@ -934,7 +946,20 @@ void ClSurfaceTracking::readByVertex(const cl::Buffer& buffer,
 
 void ClSurfaceTracking::limitStrain() {
   checkBegun("limitStrain");
-  if (options_.strain_limit_steps == 0) return;
+  limitStrainSteps(options_.strain_limit_steps);
+}
+
+void ClSurfaceTracking::restoreVolumeAgain() {
+  checkBegun("restoreVolumeAgain");
+  if (!restoresVolumeAgain(options_)) return;
+  // The inward moves only: the contact bulge would push the band beside the
+  // contacts out again, which the short limit after it does not even out.
+  restoreVolumeWith(/*contact_bulge=*/false);
+  limitStrainSteps(options_.restore_again_steps);
+}
+
+void ClSurfaceTracking::limitStrainSteps(int steps) {
+  if (steps <= 0) return;
   try {
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
     strain_offsets_.setArg(0, n);
@@ -955,7 +980,7 @@ void ClSurfaceTracking::limitStrain() {
       launch(fold_frames_kernel_, kStrainLimit, triangle_count_);
     }
     int b = 0;
-    for (int k = 0; k < options_.strain_limit_steps; ++k) {
+    for (int k = 0; k < steps; ++k) {
       if (options_.fold_guard && triangle_count_ > 0 &&
           k % options_.fold_check_steps == 0) {
         // The weights from this step's offsets: per triangle, per vertex,
@@ -1081,6 +1106,7 @@ void ClSurfaceTracking::run(const TransformList& skinning,
   smooth();
   restoreVolume();
   limitStrain();
+  restoreVolumeAgain();
   finish();
   try {
     context_->queue().finish();

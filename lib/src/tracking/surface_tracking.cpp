@@ -396,6 +396,11 @@ float tiltGuardCosine(const SurfaceTrackingOptions& options) {
                   180.f);
 }
 
+bool restoresVolumeAgain(const SurfaceTrackingOptions& options) {
+  return options.restore_again_steps > 0 && options.volume_restore > 0.f &&
+         options.strain_limit_steps > 0;
+}
+
 float tiltGuardScale(const SurfaceTrackingOptions& options) {
   const float span = options.strain_limit - options.fold_strain_limit;
   if (!options.fold_guard || !(options.tilt_guard_degrees > 0.f) ||
@@ -482,6 +487,9 @@ Validation SurfaceTrackingOptions::validate() const {
                ": expected a fraction of the rest length in [0, 100]");
   if (strain_limit_steps < 0 || strain_limit_steps > 1000)
     return bad("strain_limit_steps " + std::to_string(strain_limit_steps) +
+               ": expected 0..1000");
+  if (restore_again_steps < 0 || restore_again_steps > 1000)
+    return bad("restore_again_steps " + std::to_string(restore_again_steps) +
                ": expected 0..1000");
   if (!(fold_strain_limit >= 0 && fold_strain_limit <= 100))
     return bad("fold_strain_limit " + std::to_string(fold_strain_limit) +
@@ -1782,16 +1790,36 @@ void CpuSurfaceTracking::weighFolds(const Matrix3Xf& offsets) {
 
 void CpuSurfaceTracking::limitStrain() {
   checkBegun("limitStrain");
+  limitStrainSteps(options_.strain_limit_steps);
+}
+
+void CpuSurfaceTracking::restoreVolumeAgain() {
+  checkBegun("restoreVolumeAgain");
+  if (!restoresVolumeAgain(options_)) return;
+  // The inward moves only: the contact bulge would push the band beside the
+  // contacts out again, which the short limit after it does not even out.
+  // The bulge's band, weights and fractions stay restoreVolume()'s (as on
+  // the device).
+  std::vector<float> band = bulge_band_, weights = bulge_weights_,
+                     fractions = bulge_fractions_;
+  restoreVolumeWith(/*contact_bulge=*/false);
+  bulge_band_ = std::move(band);
+  bulge_weights_ = std::move(weights);
+  bulge_fractions_ = std::move(fractions);
+  limitStrainSteps(options_.restore_again_steps);
+}
+
+void CpuSurfaceTracking::limitStrainSteps(int steps) {
   const auto start = std::chrono::steady_clock::now();
   const int n = mesh_->vertexCount();
   const OneRings& rings = mesh_->rings;
   fold_weights_.assign(n, 0.f);
   folded_triangles_ = 0;
-  if (options_.strain_limit_steps > 0) {
+  if (steps > 0) {
     Matrix3Xf offsets = positions_ - skinned_;
     Matrix3Xf next = offsets;
     if (options_.fold_guard) frameFolds();
-    for (int k = 0; k < options_.strain_limit_steps; ++k) {
+    for (int k = 0; k < steps; ++k) {
       if (options_.fold_guard && k % options_.fold_check_steps == 0)
         weighFolds(offsets);
       for (int v = 0; v < n; ++v) {
@@ -1868,11 +1896,16 @@ void CpuSurfaceTracking::run(const TransformList& skinning,
   smooth();
   restoreVolume();
   limitStrain();
+  restoreVolumeAgain();
   finish();
 }
 
 void CpuSurfaceTracking::restoreVolume() {
   checkBegun("restoreVolume");
+  restoreVolumeWith(/*contact_bulge=*/true);
+}
+
+void CpuSurfaceTracking::restoreVolumeWith(bool contact_bulge) {
   const TrackingMesh::VolumeGroups& groups = mesh_->volume_groups;
   const int group_count = groups.groupCount();
   const int n = mesh_->vertexCount();
@@ -1908,8 +1941,8 @@ void CpuSurfaceTracking::restoreVolume() {
   for (int g = 0; g < group_count; ++g)
     missing[g] = groups.rest_volume[g] - groupVolume(g);
   const bool near_rows = static_cast<int>(groups.near_other.size()) == n;
-  const bool bulge =
-      options_.contact_bulge > 0.f && options_.contact_bulge_steps > 0;
+  const bool bulge = contact_bulge && options_.contact_bulge > 0.f &&
+                     options_.contact_bulge_steps > 0;
   // The inward moves outside contacts and creases and their weighted sums.
   for (int v = 0; v < n; ++v) {
     const int g = groups.vertex_group[v];

@@ -54,7 +54,9 @@ class ClSurfaceTracking {
   void smooth();            // beta, its diffusion and the Laplacian steps
   void restoreVolume();     // volume restoration (after smooth())
   void limitStrain();       // the strain limit's steps, with the fold guard
-  void finish();            // seam copies and normals
+  void restoreVolumeAgain();  // the restoration and restore_again_steps more
+                              // steps of the limit (after limitStrain())
+  void finish();              // seam copies and normals
 
   // The whole frame; returns when the device is done, with lastTimes().
   // Stage calls and reads throw isk::Error(kOpenCl) naming the OpenCL call
@@ -121,6 +123,8 @@ class ClSurfaceTracking {
   };
   // Over `items` work-items (-1: one per vertex).
   void launch(cl::Kernel& kernel, Stage stage, int items = -1);
+  void limitStrainSteps(int steps);  // limitStrain() with `steps` steps
+  void restoreVolumeWith(bool contact_bulge);  // restoreVolume()'s work
   void addTime(Stage stage, double ms);
   void collectTimes();
   // Binds kernels/tracking/project.cl's ISK_TRACKING_PARAMS from first_index
@@ -248,7 +252,7 @@ class ClSurfaceTracking {
       volume_vertex_chunks_, volume_vertex_chunk_offsets_, volume_groups_,
       volume_areas_, volume_signs_, volume_near_, volume_chunk_sums_[2],
       volume_fractions_, volume_missing_, volume_previous_, volume_back_,
-      volume_ones_, restore_weights_buffer_;
+      volume_ones_, volume_zeros_, restore_weights_buffer_;
   // The contact bulge: each vertex's reach (trackingLengths), its band
   // (ping-pong, bulge_band_[bulge_current_] the last), clearance and
   // weight, the chunks' sums of the weights, the groups' volume left to the

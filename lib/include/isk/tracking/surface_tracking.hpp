@@ -124,6 +124,13 @@
 //   x <- x + min(lambda, L) w n + min(kappa, contact_bulge) u n,
 //   kappa = (V_rest - V - volume_restore sum(w A)) / sum(u A),
 // both stepped back together by the secant.
+// Volume restored again (restore_again_steps, on by default; our addition,
+// see docs/algorithm.md): the strain limit runs after the restoration and
+// evens out the offsets it pushed out against the contacts' and creases',
+// which do not move, so it takes back part of the volume. The restoration
+// then runs once more on what the limit left, without the contact bulge
+// (the limit after it is too short to even out a pushed band), and the
+// limit takes restore_again_steps more steps to even out that push.
 //
 // Contact by home field (home_contact, on by default; our addition, see
 // docs/algorithm.md): each vertex has a home field, the field of the
@@ -284,6 +291,10 @@ struct SurfaceTrackingOptions {
   // Jacobi steps that enforce it (0: no limit).
   float strain_limit = 2.f;
   int strain_limit_steps = 32;
+  // The volume restored again (see above): the strain limit's steps after
+  // the second restoration, [0, 1000] (0: no second restoration; none
+  // either without the restoration or the strain limit).
+  int restore_again_steps = 8;
   // The fold guard (see above): on or off, the strain limit around a folded
   // triangle, how many rings around its corners it reaches, and how many
   // steps apart the folds are found again.
@@ -319,6 +330,10 @@ struct SurfaceTrackingOptions {
 // (clamped between the two; 0 when the tilt or the fold guard is off).
 float tiltGuardCosine(const SurfaceTrackingOptions& options);
 float tiltGuardScale(const SurfaceTrackingOptions& options);
+
+// Whether restoreVolumeAgain() does anything: restore_again_steps > 0 with
+// both the volume restoration and the strain limit on.
+bool restoresVolumeAgain(const SurfaceTrackingOptions& options);
 
 // Per-vertex state of the march, kept between stages (on the device for
 // ClSurfaceTracking).
@@ -626,10 +641,12 @@ class CpuSurfaceTracking {
   void smooth();            // beta, its diffusion and the Laplacian steps
   void restoreVolume();     // volume restoration (after smooth())
   void limitStrain();       // the strain limit's steps, with the fold guard
-  void finish();            // seam copies and normals
+  void restoreVolumeAgain();  // the restoration and restore_again_steps more
+                              // steps of the limit (after limitStrain())
+  void finish();              // seam copies and normals
 
   // The whole frame: begin, rounds x (project, relax), smooth,
-  // restoreVolume, limitStrain, finish.
+  // restoreVolume, limitStrain, restoreVolumeAgain, finish.
   void run(const TransformList& skinning, const Matrix3Xf& skinned_positions,
            const Matrix3Xf& skinned_normals, const Matrix3Xf* start = nullptr);
   // After run(): the positions moved by `offset` (a skinner adds its pose's
@@ -656,16 +673,18 @@ class CpuSurfaceTracking {
   // (after limitStrain()): the largest fold weight of the triangles within
   // fold_rings rings of it (a tilted triangle's scaled by tiltGuardScale).
   const std::vector<float>& foldWeights() const { return fold_weights_; }
-  // Volume restoration's last run (after restoreVolume()): lambda per group
+  // Volume restoration's last run (after restoreVolume(), or the second
+  // one of restoreVolumeAgain()): lambda per group
   // (TrackingMesh::volume_groups) and each vertex's weight w (#V).
   const std::vector<float>& volumeFractions() const {
     return volume_fractions_;
   }
   const std::vector<float>& restoreWeights() const { return restore_weights_; }
-  // The contact bulge's last run (after restoreVolume()): kappa per group
-  // and each vertex's band b and weight u (#V); all 0 on a frame where no
-  // group misses more volume than its inward moves give back (the band and
-  // the probe are skipped).
+  // The contact bulge's last run (after restoreVolume(); the second
+  // restoration, restoreVolumeAgain()'s, has no bulge and leaves them):
+  // kappa per group and each vertex's band b and weight u (#V); all 0 on a
+  // frame where no group misses more volume than its inward moves give back
+  // (the band and the probe are skipped).
   const std::vector<float>& bulgeFractions() const { return bulge_fractions_; }
   const std::vector<float>& bulgeBand() const { return bulge_band_; }
   const std::vector<float>& bulgeWeights() const { return bulge_weights_; }
@@ -716,6 +735,8 @@ class CpuSurfaceTracking {
   // The fold guard: the frame's triangle frames (fold_frames_, from the
   // skinned positions and normals), then the weights (fold_weights_) from
   // the offsets (#V by 3).
+  void limitStrainSteps(int steps);  // limitStrain() with `steps` steps
+  void restoreVolumeWith(bool contact_bulge);  // restoreVolume()'s work
   void frameFolds();
   void weighFolds(const Matrix3Xf& offsets);
   std::vector<FoldFrame> fold_frames_;
