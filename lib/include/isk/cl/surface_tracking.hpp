@@ -49,11 +49,11 @@ class ClSurfaceTracking {
   void begin(const TransformList& skinning, const cl::Buffer& skinned_positions,
              const cl::Buffer& skinned_normals,
              const cl::Buffer* start = nullptr);
-  void project(int steps);  // `steps` projection steps (eq. 4)
-  void relax();             // one relaxation step (eq. 5, 6)
-  void smooth();            // beta, its diffusion and the Laplacian steps
-  void restoreVolume();     // volume restoration (after smooth())
-  void limitStrain();       // the strain limit's steps, with the fold guard
+  void project(int steps);    // `steps` projection steps (eq. 4)
+  void relax();               // one relaxation step (eq. 5, 6)
+  void smooth();              // beta, its diffusion and the Laplacian steps
+  void restoreVolume();       // volume restoration (after smooth())
+  void limitStrain();         // the strain limit's steps, with the fold guard
   void restoreVolumeAgain();  // the restoration and restore_again_steps more
                               // steps of the limit (after limitStrain())
   void finish();              // seam copies and normals
