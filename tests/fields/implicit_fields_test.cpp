@@ -1135,6 +1135,36 @@ TEST(ImplicitFields, BoneWithoutVerticesGetsNoFieldAndAWarning) {
   for (float iso : fields.iso_values) ASSERT_TRUE(std::isfinite(iso));
 }
 
+// A vertex far off its part (a broken file) stretches the part's triangles
+// around it into long slivers that hold most of its area: the Poisson-disk
+// radius, from the area, is then short against the slivers' length, and the
+// part would keep up to 40 times its target (a fit over 1,900 unknowns, a
+// minute under the sanitizers). At most kMaxSamplesPerTarget times the
+// target are kept.
+TEST(ImplicitFields, APartStretchedIntoSliversKeepsABoundedSampleCount) {
+  Rig rig = rigNamed("cylinder");
+  const BonePartition partition = partitionMesh(rig);
+  ASSERT_FALSE(partition.part_vertices[1].empty());
+  const int far = partition.part_vertices[1].front();
+  const float diagonal = rig.boundingBoxDiagonal();
+  rig.mesh.positions.row(far) += Eigen::RowVector3f(0.f, 200.f * diagonal, 0.f);
+  ASSERT_TRUE(rig.validate()) << rig.validate().reason();
+  ImplicitFieldsOptions options;
+  options.sampling.target_samples = 12;
+  options.grid_resolution = 8;
+  std::vector<int> surface(rig.skeleton.jointCount(), 0);
+  options.edit_samples = [&](std::vector<BoneSamples>& samples) {
+    for (const BoneSamples& s : samples) surface[s.joint] = s.surface.size();
+  };
+  const ImplicitFields fields = buildImplicitFields(rig, options);
+  const int most = kMaxSamplesPerTarget * options.sampling.target_samples;
+  for (int j = 0; j < rig.skeleton.jointCount(); ++j)
+    EXPECT_LE(surface[j], most) << "joint " << j;
+  EXPECT_EQ(surface[1], most) << "the stretched part kept fewer samples than "
+                                 "the bound: the test no longer stretches it";
+  for (float iso : fields.iso_values) ASSERT_TRUE(std::isfinite(iso));
+}
+
 TEST(ImplicitFields, PartWithTooFewSamplesGetsNoFieldAndAWarning) {
   // Samples cut down to 3 (fewer than an HRBF needs) before fitting.
   const Rig& rig = rigNamed("finger");

@@ -70,9 +70,11 @@ BoneSamples sampleBonePart(const Mesh& mesh, const BonePartition& partition,
 
   const double radius = 0.75 * std::sqrt(area / options.target_samples);
   const int candidates = 40 * options.target_samples;
+  const size_t most = static_cast<size_t>(kMaxSamplesPerTarget) *
+                      static_cast<size_t>(options.target_samples);
   Random random(options.seed ^ (0x9e3779b97f4a7c15ull * (joint + 1)));
   std::vector<Eigen::Vector3d> kept;
-  for (int i = 0; i < candidates; ++i) {
+  for (int i = 0; i < candidates && out.surface.positions.size() < most; ++i) {
     const double pick = random.uniform() * area;
     const size_t index = std::min<size_t>(
         std::lower_bound(cumulative_area.begin(), cumulative_area.end(), pick) -

@@ -29,6 +29,13 @@
 
 namespace isk {
 
+// At most this many times target_samples surface samples are kept per part:
+// the Poisson-disk radius comes from the part's area, and a part whose area
+// lies in long slivers (a vertex far off its part in a broken file) would
+// keep up to 40 times the target; the fit's cost grows with the cube of the
+// samples. The shared assets keep at most twice the target.
+constexpr int kMaxSamplesPerTarget = 4;
+
 // How a part is sampled (the paper's values by default).
 struct BoneSamplingOptions {
   int target_samples = 50;     // Poisson-disk target per part
