@@ -71,7 +71,16 @@ SPEEDUP_MIN_VERTICES = 25000
 TARGET_GPU_FPS_170K = 300.0
 
 STAGES = ("upload", "skinning", "projection", "relaxation", "smoothing",
-          "normals", "readback")
+          "volume", "strain_limit", "normals", "readback")
+
+
+def stage_cell(run, stage, frame_ms):
+    """A stage's ms and share of the frame; n/a where the run did not time it
+    (runs recorded before the stage had a counter)."""
+    value = run.get(stage + "_ms")
+    if value is None:
+        return "n/a"
+    return f"{ms(value)} ({100 * value / frame_ms:.0f}%)"
 
 
 def log(message):
@@ -705,8 +714,7 @@ def implicit_section(results):
                          count(cl.get("crease")), count(cl.get("lost"))])
             stage_rows.append(
                 [model, ms(cl_ms)]
-                + [f"{ms(cl.get(s + '_ms', 0))} ({100 * cl.get(s + '_ms', 0) / cl_ms:.0f}%)"
-                   for s in STAGES]
+                + [stage_cell(cl, s, cl_ms) for s in STAGES]
                 + [f"{100 * (1 - sum(cl.get(s + '_ms', 0) for s in STAGES) / cl_ms):.0f}%"])
             if "setup_ms" in cl:
                 start_rows.append([model, count(cl["vertices"]),
@@ -737,8 +745,7 @@ def implicit_section(results):
         r_ms = to_ms(ref)
         ref_rows.append(
             [model, ms(r_ms)]
-            + [f"{ms(ref.get(s + '_ms', 0))} ({100 * ref.get(s + '_ms', 0) / r_ms:.0f}%)"
-               for s in STAGES])
+            + [stage_cell(ref, s, r_ms) for s in STAGES])
     if ref_rows:
         lines += ["### CPU reference, 1 thread: stages", ""]
         lines += table(["model", "frame ms"] + list(STAGES), ref_rows)

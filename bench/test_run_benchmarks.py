@@ -227,6 +227,26 @@ class Render(unittest.TestCase):
         self.assertIn("#### Vendor / GPU (OpenCL device 0)", text)
         self.assertNotIn("nan", text.lower())
 
+    def test_stage_table_times_every_stage_the_run_timed(self):
+        # 10 ms: projection 5, relaxation 2.5, volume 1, strain limit 1, and
+        # 0.41 in the small stages of implicit(): 0.09 ms is not in a stage.
+        data = document([implicit("Big", "opencl:0", 10.0, 1000,
+                                  volume_ms=1.0, strain_limit_ms=1.0),
+                         implicit("Old", "opencl:0", 10.0, 1000)])
+        text = run_benchmarks.render(data, "cmd")
+        header = next(l for l in text.splitlines()
+                      if l.startswith("| model | frame ms | upload |"))
+        self.assertIn("| smoothing | volume | strain_limit | normals |",
+                      header)
+        big = next(l for l in text.splitlines()
+                   if l.startswith("| Big | 10.00 |"))
+        self.assertIn("| 1.000 (10%) | 1.000 (10%) |", big)
+        self.assertTrue(big.endswith("| 1% |"), big)
+        # A run recorded before the two stages had counters says n/a.
+        old = next(l for l in text.splitlines()
+                   if l.startswith("| Old | 10.00 |"))
+        self.assertIn("| n/a | n/a |", old)
+
     def test_a_recorded_run_of_paired_scaling_frames_has_its_rows(self):
         # A recorded GPU run with only Scaling/.../paired: the rows take the
         # paired frames' own times; the stage columns say n/a.
