@@ -3193,6 +3193,16 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     EXPECT_LE(flipped, kFlipFraction * states.size())
         << stage << ": states differ, first at vertex " << first;
   };
+  // Each volume group's restored fraction (sums in another order).
+  auto compareVolumeFractions = [&](const char* stage) {
+    std::vector<float> fractions;
+    cl.readVolumeFractions(fractions);
+    ASSERT_EQ(fractions.size(), cpu.volumeFractions().size()) << stage;
+    for (size_t g = 0; g < fractions.size(); ++g)
+      EXPECT_NEAR(fractions[g], cpu.volumeFractions()[g],
+                  chained ? 1.f : 1e-3f + 1e-2f * cpu.volumeFractions()[g])
+          << stage << ", volume group " << g;
+  };
   const SurfaceTrackingOptions& options = cpu.options();
   for (int round = 0; round < options.rounds; ++round) {
     // Both from the reference's state (chained: each from its own).
@@ -3252,13 +3262,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   cpu.restoreVolume();
   cl.restoreVolume();
   compare("volume restoration");
-  std::vector<float> fractions;
-  cl.readVolumeFractions(fractions);
-  ASSERT_EQ(fractions.size(), cpu.volumeFractions().size());
-  for (size_t g = 0; g < fractions.size(); ++g)
-    EXPECT_NEAR(fractions[g], cpu.volumeFractions()[g],
-                chained ? 1.f : 1e-3f + 1e-2f * cpu.volumeFractions()[g])
-        << "volume group " << g;
+  compareVolumeFractions("volume restoration");
   // The contact bulge: the band and the weights from the same states, the
   // fractions from sums in another order.
   std::vector<float> bulge_fractions, band, bulge_weights;
@@ -3292,12 +3296,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   cpu.restoreVolumeAgain();
   cl.restoreVolumeAgain();
   compare("volume restored again");
-  cl.readVolumeFractions(fractions);
-  ASSERT_EQ(fractions.size(), cpu.volumeFractions().size());
-  for (size_t g = 0; g < fractions.size(); ++g)
-    EXPECT_NEAR(fractions[g], cpu.volumeFractions()[g],
-                chained ? 1.f : 1e-3f + 1e-2f * cpu.volumeFractions()[g])
-        << "volume restored again, group " << g;
+  compareVolumeFractions("volume restored again");
   if (!chained)
     detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
                                          cpu.previousGradients());
