@@ -136,7 +136,7 @@ using detail::CacheReader;
 using detail::CacheWriter;
 
 // Bumped whenever sampling, fitting or baking changes their results.
-constexpr uint32_t kFieldBuildVersion = 7;
+constexpr uint32_t kFieldBuildVersion = 8;
 constexpr detail::CacheFileKind kFieldCacheFile = {
     {'I', 'S', 'K', 'F', 'I', 'E', 'L', 'D'},
     1,  // format version: bumping it orphans every file written
