@@ -68,15 +68,21 @@ __kernel void track_fold_frames(const uint triangle_count,
 // and the sum of its corners' skinned normals, each cosine ramped over
 // ISK_FOLD_RAMP, times its allowance. With the tilt guard (tilt_scale > 0),
 // the larger of that and tilt_scale times how far the normal turned past
-// tilt_cosine from both (tiltWeight).
+// tilt_cosine from both (tiltWeight). The weight depends on the corners'
+// offsets alone (the frames are the frame's): unless weigh_all, a triangle
+// none of whose corners changed since the last check keeps its weight.
 __kernel void track_weigh_triangles(
     const uint triangle_count, __global const float* offsets,
     __global const float* skinned, __global const int* source,
     __global const int* fold_corners, __global const float4* frames,
     __global float* triangle_weights, const float tilt_cosine,
-    const float tilt_scale) {
+    const float tilt_scale, __global const uchar* changed,
+    const int weigh_all) {
   const uint t = get_global_id(0);
   if (t >= triangle_count) return;
+  if (!weigh_all && !changed[fold_corners[3 * t]] &&
+      !changed[fold_corners[3 * t + 1]] && !changed[fold_corners[3 * t + 2]])
+    return;
   const float4 a = frames[2 * t];
   float weight = 0.0f;
   if (a.w > 0.0f) {
@@ -102,14 +108,17 @@ __kernel void track_weigh_triangles(
 }
 
 // A vertex's weight: the largest of the triangles with a corner in its
-// welded group (fold rows: compressed, per device index).
+// welded group (fold rows: compressed, per device index). The triangles are
+// weighed: the vertex is unchanged since this check.
 __kernel void track_weigh_folds(const uint vertex_count,
                                 __global const uint* fold_offsets,
                                 __global const int* fold_triangles,
                                 __global const float* triangle_weights,
-                                __global float* weights) {
+                                __global float* weights,
+                                __global uchar* changed) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
+  changed[v] = 0;
   float weight = 0.0f;
   for (uint i = fold_offsets[v]; i < fold_offsets[v + 1]; ++i)
     weight = fmax(weight, triangle_weights[fold_triangles[i]]);

@@ -9,24 +9,33 @@
 // Per-vertex arrays and the one-rings are in the device's vertex order
 // (tracking/project.cl); the skinned positions are in the mesh's order,
 // device index k reading skinned[source[k]]. The steps work on the offsets
-// (packed float triples) and a uchar per vertex that says whether its last
-// step moved it: a vertex none of whose ring moved in the last step has the
-// same edges as then, none violated, and is only copied.
+// (packed float triples, ping-pong) and a uchar per vertex that says whether
+// its last step moved it: a vertex none of whose ring moved in the last step
+// has the same edges as then, none violated, and is left as it is: its
+// offset is the same in both buffers (both start equal, and a step that
+// does not move a vertex it visits copies its offset across).
 
 #include "common.h"
 
-// The offsets from the skinned positions; every vertex marked as moved, so
-// that the first step visits them all.
+// The offsets from the skinned positions, in both buffers; every vertex
+// marked as moved, so that the first step visits them all, and as unchanged
+// since the fold guard's last check (its first check weighs every
+// triangle).
 __kernel void track_strain_offsets(const uint vertex_count,
                                    __global const float* positions,
                                    __global const float* skinned,
                                    __global const int* source,
                                    __global float* offsets,
-                                   __global uchar* moved) {
+                                   __global float* offsets_other,
+                                   __global uchar* moved,
+                                   __global uchar* changed) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  vstore3(vload3(v, positions) - vload3(source[v], skinned), v, offsets);
+  const float3 d = vload3(v, positions) - vload3(source[v], skinned);
+  vstore3(d, v, offsets);
+  vstore3(d, v, offsets_other);
   moved[v] = 1;
+  changed[v] = 0;
 }
 
 // One Jacobi step for one vertex (strainLimitStep): its offset d moved, for
@@ -35,24 +44,26 @@ __kernel void track_strain_offsets(const uint vertex_count,
 // (continuous as an edge starts to violate). An edge's limit goes from limit
 // to fold_limit by the larger fold weight of its ends (the fold guard,
 // tracking/fold_guard.cl). Only the tracked vertices (the first
-// march_count, march order) move.
+// march_count, march order) move. A vertex that moves is marked in changed
+// until the fold guard's next check has weighed its triangles.
 __kernel void track_limit_strain(
     const uint vertex_count, const uint march_count,
     __global const float* offsets_in, __global float* offsets_out,
     __global const uchar* moved_in, __global uchar* moved_out,
     __global const uint* ring_offsets, __global const int* ring_neighbours,
     __global const float* ring_lengths, const float limit,
-    __global const float* fold_weights, const float fold_limit) {
+    __global const float* fold_weights, const float fold_limit,
+    __global uchar* changed) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const float3 d = vload3(v, offsets_in);
-  float3 out = d;
   uchar moved = 0;
   const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
   bool active = v < march_count && moved_in[v] != 0;
   for (uint i = begin; v < march_count && !active && i < end; ++i)
     active = moved_in[ring_neighbours[i]] != 0;
   if (active) {
+    const float3 d = vload3(v, offsets_in);
+    float3 out = d;
     float3 correction = (float3)(0.0f);
     bool violated = false;
     const float fold_v = fold_weights[v];
@@ -72,9 +83,10 @@ __kernel void track_limit_strain(
     if (violated) {
       out = d + correction / (float)(end - begin);
       moved = 1;
+      changed[v] = 1;
     }
+    vstore3(out, v, offsets_out);
   }
-  vstore3(out, v, offsets_out);
   moved_out[v] = moved;
 }
 

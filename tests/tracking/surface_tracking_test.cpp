@@ -3193,6 +3193,18 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
     EXPECT_LE(flipped, kFlipFraction * states.size())
         << stage << ": states differ, first at vertex " << first;
   };
+  // The fold guard's weights at the last check of the strain limit's steps
+  // (a check weighs on the device only the triangles whose corners moved
+  // since the one before: the same weights as weighing them all).
+  auto compareFoldWeights = [&](const char* stage) {
+    std::vector<float> weights;
+    cl.readFoldWeights(weights);
+    ASSERT_EQ(weights.size(), cpu.foldWeights().size()) << stage;
+    if (chained) return;
+    for (size_t v = 0; v < weights.size(); ++v)
+      ASSERT_NEAR(weights[v], cpu.foldWeights()[v], 1e-3f)
+          << stage << ", fold weight of vertex " << v;
+  };
   // Each volume group's restored fraction (sums in another order).
   auto compareVolumeFractions = [&](const char* stage) {
     std::vector<float> fractions;
@@ -3290,6 +3302,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   cpu.limitStrain();
   cl.limitStrain();
   compare("strain limit");
+  compareFoldWeights("strain limit");
   if (!chained)
     detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
                                          cpu.previousGradients());
@@ -3297,6 +3310,7 @@ void checkStages(const Rig& rig, std::shared_ptr<const ImplicitFields> f,
   cl.restoreVolumeAgain();
   compare("volume restored again");
   compareVolumeFractions("volume restored again");
+  compareFoldWeights("volume restored again");
   if (!chained)
     detail::TrackingTestAccess::setState(cl, cpu.positions(), cpu.states(),
                                          cpu.previousGradients());

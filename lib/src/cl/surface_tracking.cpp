@@ -244,6 +244,7 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   for (auto& b : beta_) b = rw(2 * n * sizeof(float));
   for (auto& b : strain_offsets_buffers_) b = rw(floats3);
   for (auto& b : strain_moved_) b = rw(n);
+  fold_changed_ = rw(n);
   for (auto& b : fold_scratch_) b = rw(n * sizeof(float));
   fold_weights_ = rw(n * sizeof(float));
   crease_sources_ = rw(n * sizeof(float));
@@ -313,7 +314,7 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
       3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
   triangle_normals_ = rw(triangle_floats3);
   bytes_ +=
-      5 * floats3 + 4 * n + 3 * n * sizeof(float) +
+      5 * floats3 + 5 * n + 3 * n * sizeof(float) +
       9 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1)) +
       2 * n * 4 * sizeof(float) + 4 * n * sizeof(float) + triangle_floats3;
 }
@@ -528,6 +529,7 @@ void ClSurfaceTracking::begin(const TransformList& skinning,
     times_ = {};
     events_.clear();
     current_ = 0;
+    fold_frames_posed_ = false;
     fallback_normals_ = skinned_normals;
     skinned_positions_ = skinned_positions;
     const cl_uint n = static_cast<cl_uint>(vertex_count_);
@@ -933,6 +935,11 @@ void ClSurfaceTracking::readBulgeWeights(std::vector<float>& out) {
   readByVertex(bulge_weights_buffer_, out, "readBulgeWeights");
 }
 
+void ClSurfaceTracking::readFoldWeights(std::vector<float>& out) {
+  checkBegun("readFoldWeights");
+  readByVertex(fold_weights_, out, "readFoldWeights");
+}
+
 void ClSurfaceTracking::readByVertex(const cl::Buffer& buffer,
                                      std::vector<float>& out,
                                      const char* what) {
@@ -967,10 +974,12 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
     strain_offsets_.setArg(2, skinned_positions_);
     strain_offsets_.setArg(3, begin_source_);
     strain_offsets_.setArg(4, strain_offsets_buffers_[0]);
-    strain_offsets_.setArg(5, strain_moved_[0]);
+    strain_offsets_.setArg(5, strain_offsets_buffers_[1]);
+    strain_offsets_.setArg(6, strain_moved_[0]);
+    strain_offsets_.setArg(7, fold_changed_);
     launch(strain_offsets_, kStrainLimit);
     const cl_uint triangles = static_cast<cl_uint>(triangle_count_);
-    if (options_.fold_guard && triangle_count_ > 0) {
+    if (options_.fold_guard && triangle_count_ > 0 && !fold_frames_posed_) {
       fold_frames_kernel_.setArg(0, triangles);
       fold_frames_kernel_.setArg(1, skinned_positions_);
       fold_frames_kernel_.setArg(2, fallback_normals_);
@@ -978,6 +987,7 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
       fold_frames_kernel_.setArg(4, fold_corners_);
       fold_frames_kernel_.setArg(5, fold_frames_);
       launch(fold_frames_kernel_, kStrainLimit, triangle_count_);
+      fold_frames_posed_ = true;
     }
     int b = 0;
     for (int k = 0; k < steps; ++k) {
@@ -995,12 +1005,15 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
         weigh_triangles_.setArg(6, triangle_weights_);
         weigh_triangles_.setArg(7, tiltGuardCosine(options_));
         weigh_triangles_.setArg(8, tiltGuardScale(options_));
+        weigh_triangles_.setArg(9, fold_changed_);
+        weigh_triangles_.setArg(10, static_cast<cl_int>(k == 0));
         launch(weigh_triangles_, kStrainLimit, triangle_count_);
         weigh_folds_.setArg(0, n);
         weigh_folds_.setArg(1, fold_offsets_);
         weigh_folds_.setArg(2, fold_triangles_);
         weigh_folds_.setArg(3, triangle_weights_);
         weigh_folds_.setArg(4, fold_scratch_[0]);
+        weigh_folds_.setArg(5, fold_changed_);
         launch(weigh_folds_, kStrainLimit);
         int m = 0;
         for (int r = 0; r < options_.fold_rings; ++r) {
@@ -1032,6 +1045,7 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
       limit_strain_.setArg(10, fold_weights_);
       limit_strain_.setArg(11, options_.fold_guard ? options_.fold_strain_limit
                                                    : options_.strain_limit);
+      limit_strain_.setArg(12, fold_changed_);
       launch(limit_strain_, kStrainLimit);
       b = 1 - b;
     }

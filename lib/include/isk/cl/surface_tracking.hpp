@@ -88,6 +88,9 @@ class ClSurfaceTracking {
   void readBulgeFractions(std::vector<float>& out);
   void readBulgeBand(std::vector<float>& out);
   void readBulgeWeights(std::vector<float>& out);
+  // The fold guard's last check: each vertex's weight (#V) as
+  // CpuSurfaceTracking::foldWeights() (0 without the guard).
+  void readFoldWeights(std::vector<float>& out);
   // Vertices stopped at a contact in the last frame (a blocking read of the
   // states).
   int contactCount();
@@ -238,10 +241,14 @@ class ClSurfaceTracking {
   cl::Buffer strain_offsets_buffers_[2], strain_moved_[2];
   // The fold guard: the layout's fold rows (TrackingDeviceLayout), the
   // triangles' frames (two float4 each) and weights of the frame, the
-  // vertices' weights the steps read and two scratch buffers (float per
-  // vertex) a check computes them in.
+  // vertices' weights the steps read, two scratch buffers (float per
+  // vertex) a check computes them in, and whether a vertex's offset changed
+  // since the last check (uchar per vertex: the next check weighs only its
+  // triangles). The frames depend on the skinned mesh alone: computed once
+  // a frame (fold_frames_posed_, reset by begin()).
   cl::Buffer fold_corners_, fold_offsets_, fold_triangles_, fold_frames_,
-      triangle_weights_, fold_weights_, fold_scratch_[2];
+      triangle_weights_, fold_weights_, fold_scratch_[2], fold_changed_;
+  bool fold_frames_posed_ = false;
   // Volume restoration: the layout's volume rows (TrackingDeviceLayout),
   // the chunks' sums, the groups' fractions, missing volumes and secant
   // steps back, and the vertices' weights.
