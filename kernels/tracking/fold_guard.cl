@@ -63,26 +63,35 @@ __kernel void track_fold_frames(const uint triangle_count,
   frames[2 * t + 1] = b;
 }
 
+// A check recomputes only what its inputs changed (unless `all`, the
+// first check of a series, which computes everything): a triangle the steps
+// marked (a corner moved), then the vertex weights level by level (level 0
+// from the triangles, level r + 1 one ring more than level r; levels: one
+// row of #V floats per level, kept between checks), each vertex flagged
+// when an input of its level changed (flags: a row of #V uchars per level,
+// then one for the commit). A value that comes out the same flags nothing
+// further. Every kernel clears the marks it reads.
+
 // Each triangle's fold weight (foldWeight), in [0, 1]: how far its normal
 // at the skinned positions plus the offsets opposes both its skinned normal
 // and the sum of its corners' skinned normals, each cosine ramped over
 // ISK_FOLD_RAMP, times its allowance. With the tilt guard (tilt_scale > 0),
 // the larger of that and tilt_scale times how far the normal turned past
 // tilt_cosine from both (tiltWeight). The weight depends on the corners'
-// offsets alone (the frames are the frame's): unless weigh_all, a triangle
-// none of whose corners changed since the last check keeps its weight.
+// offsets alone (the frames are the frame's): a triangle the steps did not
+// mark keeps its weight. Where a weight changes, its corners' level 0 is
+// flagged.
 __kernel void track_weigh_triangles(
     const uint triangle_count, __global const float* offsets,
     __global const float* skinned, __global const int* source,
     __global const int* fold_corners, __global const float4* frames,
     __global float* triangle_weights, const float tilt_cosine,
-    const float tilt_scale, __global const uchar* changed,
-    const int weigh_all) {
+    const float tilt_scale, __global uchar* dirty_triangles, const int all,
+    __global uchar* flags) {
   const uint t = get_global_id(0);
   if (t >= triangle_count) return;
-  if (!weigh_all && !changed[fold_corners[3 * t]] &&
-      !changed[fold_corners[3 * t + 1]] && !changed[fold_corners[3 * t + 2]])
-    return;
+  if (!all && !dirty_triangles[t]) return;
+  dirty_triangles[t] = 0;
   const float4 a = frames[2 * t];
   float weight = 0.0f;
   if (a.w > 0.0f) {
@@ -104,53 +113,86 @@ __kernel void track_weigh_triangles(
                                             a.w));
     }
   }
+  if (!all && weight == triangle_weights[t]) return;
   triangle_weights[t] = weight;
+  if (!all)
+    for (int c = 0; c < 3; ++c) flags[fold_corners[3 * t + c]] = 1;
 }
 
-// A vertex's weight: the largest of the triangles with a corner in its
-// welded group (fold rows: compressed, per device index). The triangles are
-// weighed: the vertex is unchanged since this check.
-__kernel void track_weigh_folds(const uint vertex_count,
-                                __global const uint* fold_offsets,
-                                __global const int* fold_triangles,
-                                __global const float* triangle_weights,
-                                __global float* weights,
-                                __global uchar* changed) {
+// Flags the next level of vertex v and of the vertices whose rings list it
+// (a level one ring out reads v), or v's commit (`ring` 0).
+ISK_INLINE void flag_next(const uint v, __global uchar* next, const int ring,
+                          __global const uint* reverse_offsets,
+                          __global const int* reverse_neighbours) {
+  next[v] = 1;
+  if (!ring) return;
+  for (uint i = reverse_offsets[v]; i < reverse_offsets[v + 1]; ++i)
+    next[reverse_neighbours[i]] = 1;
+}
+
+// Level 0 of a vertex: the largest weight of the triangles with a corner in
+// its welded group (fold rows: compressed, per device index).
+// `next_ring`: whether the next level grows a ring (else it is the commit).
+__kernel void track_weigh_folds(
+    const uint vertex_count, __global const uint* fold_offsets,
+    __global const int* fold_triangles,
+    __global const float* triangle_weights, __global float* level,
+    __global uchar* flags, __global uchar* next_flags, const int next_ring,
+    __global const uint* reverse_offsets,
+    __global const int* reverse_neighbours, const int all) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  changed[v] = 0;
+  if (!all && !flags[v]) return;
+  flags[v] = 0;
   float weight = 0.0f;
   for (uint i = fold_offsets[v]; i < fold_offsets[v + 1]; ++i)
     weight = fmax(weight, triangle_weights[fold_triangles[i]]);
-  weights[v] = weight;
+  if (!all && weight == level[v]) return;
+  level[v] = weight;
+  if (!all)
+    flag_next(v, next_flags, next_ring, reverse_offsets, reverse_neighbours);
 }
 
-// One ring more: the largest weight of the vertex and its ring.
-__kernel void track_grow_folds(const uint vertex_count,
-                               __global const float* weights_in,
-                               __global float* weights_out,
-                               __global const uint* ring_offsets,
-                               __global const int* ring_neighbours) {
+// One ring more: the largest weight of the vertex and its ring in the level
+// before.
+__kernel void track_grow_folds(
+    const uint vertex_count, __global const float* level_in,
+    __global float* level, __global uchar* flags, __global uchar* next_flags,
+    const int next_ring, __global const uint* ring_offsets,
+    __global const int* ring_neighbours, __global const uint* reverse_offsets,
+    __global const int* reverse_neighbours, const int all) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  float weight = weights_in[v];
+  if (!all && !flags[v]) return;
+  flags[v] = 0;
+  float weight = level_in[v];
   for (uint i = ring_offsets[v]; i < ring_offsets[v + 1]; ++i)
-    weight = fmax(weight, weights_in[ring_neighbours[i]]);
-  weights_out[v] = weight;
+    weight = fmax(weight, level_in[ring_neighbours[i]]);
+  if (!all && weight == level[v]) return;
+  level[v] = weight;
+  if (!all)
+    flag_next(v, next_flags, next_ring, reverse_offsets, reverse_neighbours);
 }
 
-// The new weights replace the ones the steps read; a vertex whose weight
-// changed is marked as moved, so that the next step visits it and its ring
-// (their edges' limits changed). The others keep their place in the active
-// vertices.
-__kernel void track_commit_folds(const uint vertex_count,
-                                 __global const float* weights_new,
-                                 __global float* weights, __global uchar* moved) {
+// The last level's weights replace the ones the steps read; where one
+// changed, the vertex and the tracked vertices whose rings list it are
+// marked active for the next step (their edges' limits changed).
+__kernel void track_commit_folds(
+    const uint vertex_count, const uint march_count,
+    __global const float* level, __global float* weights,
+    __global uchar* flags, __global uchar* active,
+    __global const uint* reverse_offsets,
+    __global const int* reverse_neighbours, const int all) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const float w = weights_new[v];
-  if (w != weights[v]) {
-    weights[v] = w;
-    moved[v] = 1;
+  if (!all && !flags[v]) return;
+  flags[v] = 0;
+  const float w = level[v];
+  if (w == weights[v]) return;
+  weights[v] = w;
+  if (v < march_count) active[v] = 1;
+  for (uint i = reverse_offsets[v]; i < reverse_offsets[v + 1]; ++i) {
+    const int u = reverse_neighbours[i];
+    if ((uint)u < march_count) active[u] = 1;
   }
 }

@@ -150,6 +150,10 @@ void ClSurfaceTracking::uploadLayout(
   reverse_offsets_ = uploadReadOnly(*context_, layout.reverse_offsets, &bytes_);
   reverse_neighbours_ =
       uploadReadOnly(*context_, layout.reverse_neighbours, &bytes_);
+  ring_reverse_offsets_ =
+      uploadReadOnly(*context_, layout.ring_reverse_offsets, &bytes_);
+  ring_reverse_neighbours_ =
+      uploadReadOnly(*context_, layout.ring_reverse_neighbours, &bytes_);
   fold_corners_ = uploadReadOnly(*context_, layout.fold_corners, &bytes_);
   fold_offsets_ = uploadReadOnly(*context_, layout.fold_offsets, &bytes_);
   fold_triangles_ = uploadReadOnly(*context_, layout.fold_triangles, &bytes_);
@@ -243,9 +247,18 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   relax_frames_ = rw(n * 4 * sizeof(float));
   for (auto& b : beta_) b = rw(2 * n * sizeof(float));
   for (auto& b : strain_offsets_buffers_) b = rw(floats3);
-  for (auto& b : strain_moved_) b = rw(n);
-  fold_changed_ = rw(n);
-  for (auto& b : fold_scratch_) b = rw(n * sizeof(float));
+  for (auto& b : strain_active_) {
+    b = rw(n);
+    context_->queue().enqueueFillBuffer(b, cl_uchar{0}, 0, n);
+  }
+  fold_levels_.resize(static_cast<size_t>(options_.fold_rings) + 1);
+  for (auto& b : fold_levels_) b = rw(n * sizeof(float));
+  fold_flags_.resize(static_cast<size_t>(options_.fold_rings) + 2);
+  for (auto& b : fold_flags_) {
+    b = rw(n);
+    context_->queue().enqueueFillBuffer(b, cl_uchar{0}, 0, n);
+  }
+  bytes_ += fold_levels_.size() * n * sizeof(float) + fold_flags_.size() * n;
   fold_weights_ = rw(n * sizeof(float));
   crease_sources_ = rw(n * sizeof(float));
   restore_weights_buffer_ = rw(n * sizeof(float));
@@ -309,14 +322,18 @@ void ClSurfaceTracking::allocateState(const TrackingMesh& mesh) {
   const size_t triangles = static_cast<size_t>(std::max(triangle_count_, 1));
   fold_frames_ = rw(triangles * 8 * sizeof(float));
   triangle_weights_ = rw(triangles * sizeof(float));
+  fold_dirty_triangles_ = rw(triangles);
+  context_->queue().enqueueFillBuffer(fold_dirty_triangles_, cl_uchar{0}, 0,
+                                      triangles);
   reach_ = rw(n);
   const size_t triangle_floats3 =
       3 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1));
   triangle_normals_ = rw(triangle_floats3);
-  bytes_ +=
-      5 * floats3 + 5 * n + 3 * n * sizeof(float) +
-      9 * sizeof(float) * static_cast<size_t>(std::max(triangle_count_, 1)) +
-      2 * n * 4 * sizeof(float) + 4 * n * sizeof(float) + triangle_floats3;
+  bytes_ += 5 * floats3 + 4 * n + sizeof(float) * n +
+            (9 * sizeof(float) + 1) *
+                static_cast<size_t>(std::max(triangle_count_, 1)) +
+            2 * n * 4 * sizeof(float) + 4 * n * sizeof(float) +
+            triangle_floats3;
 }
 
 void ClSurfaceTracking::addTime(Stage stage, double ms) {
@@ -975,8 +992,6 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
     strain_offsets_.setArg(3, begin_source_);
     strain_offsets_.setArg(4, strain_offsets_buffers_[0]);
     strain_offsets_.setArg(5, strain_offsets_buffers_[1]);
-    strain_offsets_.setArg(6, strain_moved_[0]);
-    strain_offsets_.setArg(7, fold_changed_);
     launch(strain_offsets_, kStrainLimit);
     const cl_uint triangles = static_cast<cl_uint>(triangle_count_);
     if (options_.fold_guard && triangle_count_ > 0 && !fold_frames_posed_) {
@@ -989,54 +1004,18 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
       launch(fold_frames_kernel_, kStrainLimit, triangle_count_);
       fold_frames_posed_ = true;
     }
+    // Step k reads offsets b and active marks b, and writes the others.
     int b = 0;
     for (int k = 0; k < steps; ++k) {
       if (options_.fold_guard && triangle_count_ > 0 &&
-          k % options_.fold_check_steps == 0) {
-        // The weights from this step's offsets: per triangle, per vertex,
-        // fold_rings rings out, then committed (where one changed, the
-        // vertex is marked as moved: its edges' limits changed).
-        weigh_triangles_.setArg(0, triangles);
-        weigh_triangles_.setArg(1, strain_offsets_buffers_[b]);
-        weigh_triangles_.setArg(2, skinned_positions_);
-        weigh_triangles_.setArg(3, begin_source_);
-        weigh_triangles_.setArg(4, fold_corners_);
-        weigh_triangles_.setArg(5, fold_frames_);
-        weigh_triangles_.setArg(6, triangle_weights_);
-        weigh_triangles_.setArg(7, tiltGuardCosine(options_));
-        weigh_triangles_.setArg(8, tiltGuardScale(options_));
-        weigh_triangles_.setArg(9, fold_changed_);
-        weigh_triangles_.setArg(10, static_cast<cl_int>(k == 0));
-        launch(weigh_triangles_, kStrainLimit, triangle_count_);
-        weigh_folds_.setArg(0, n);
-        weigh_folds_.setArg(1, fold_offsets_);
-        weigh_folds_.setArg(2, fold_triangles_);
-        weigh_folds_.setArg(3, triangle_weights_);
-        weigh_folds_.setArg(4, fold_scratch_[0]);
-        weigh_folds_.setArg(5, fold_changed_);
-        launch(weigh_folds_, kStrainLimit);
-        int m = 0;
-        for (int r = 0; r < options_.fold_rings; ++r) {
-          grow_folds_.setArg(0, n);
-          grow_folds_.setArg(1, fold_scratch_[m]);
-          grow_folds_.setArg(2, fold_scratch_[1 - m]);
-          grow_folds_.setArg(3, ring_offsets_);
-          grow_folds_.setArg(4, ring_neighbours_);
-          launch(grow_folds_, kStrainLimit);
-          m = 1 - m;
-        }
-        commit_folds_.setArg(0, n);
-        commit_folds_.setArg(1, fold_scratch_[m]);
-        commit_folds_.setArg(2, fold_weights_);
-        commit_folds_.setArg(3, strain_moved_[b]);
-        launch(commit_folds_, kStrainLimit);
-      }
-      limit_strain_.setArg(0, n);
-      limit_strain_.setArg(1, static_cast<cl_uint>(march_count_));
-      limit_strain_.setArg(2, strain_offsets_buffers_[b]);
-      limit_strain_.setArg(3, strain_offsets_buffers_[1 - b]);
-      limit_strain_.setArg(4, strain_moved_[b]);
-      limit_strain_.setArg(5, strain_moved_[1 - b]);
+          k % options_.fold_check_steps == 0)
+        checkFolds(strain_offsets_buffers_[b], k == 0, strain_active_[b]);
+      limit_strain_.setArg(0, static_cast<cl_uint>(march_count_));
+      limit_strain_.setArg(1, static_cast<cl_int>(k == 0));
+      limit_strain_.setArg(2, strain_active_[b]);
+      limit_strain_.setArg(3, strain_active_[1 - b]);
+      limit_strain_.setArg(4, strain_offsets_buffers_[b]);
+      limit_strain_.setArg(5, strain_offsets_buffers_[1 - b]);
       limit_strain_.setArg(6, ring_offsets_);
       limit_strain_.setArg(7, ring_neighbours_);
       limit_strain_.setArg(8, ring_lengths_);
@@ -1045,8 +1024,12 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
       limit_strain_.setArg(10, fold_weights_);
       limit_strain_.setArg(11, options_.fold_guard ? options_.fold_strain_limit
                                                    : options_.strain_limit);
-      limit_strain_.setArg(12, fold_changed_);
-      launch(limit_strain_, kStrainLimit);
+      limit_strain_.setArg(12, ring_reverse_offsets_);
+      limit_strain_.setArg(13, ring_reverse_neighbours_);
+      limit_strain_.setArg(14, fold_offsets_);
+      limit_strain_.setArg(15, fold_triangles_);
+      limit_strain_.setArg(16, fold_dirty_triangles_);
+      launch(limit_strain_, kStrainLimit, march_count_);
       b = 1 - b;
     }
     strain_positions_.setArg(0, n);
@@ -1059,6 +1042,64 @@ void ClSurfaceTracking::limitStrainSteps(int steps) {
     throwClError(
         e, "ClSurfaceTracking::limitStrain on " + context_->info().describe());
   }
+}
+
+void ClSurfaceTracking::checkFolds(const cl::Buffer& offsets, bool all,
+                                   const cl::Buffer& active) {
+  // The weights from these offsets: per triangle, per vertex (level 0),
+  // fold_rings rings out (one level each), then committed.
+  const cl_uint n = static_cast<cl_uint>(vertex_count_);
+  const cl_int every = all ? 1 : 0;
+  const int rings = options_.fold_rings;
+  weigh_triangles_.setArg(0, static_cast<cl_uint>(triangle_count_));
+  weigh_triangles_.setArg(1, offsets);
+  weigh_triangles_.setArg(2, skinned_positions_);
+  weigh_triangles_.setArg(3, begin_source_);
+  weigh_triangles_.setArg(4, fold_corners_);
+  weigh_triangles_.setArg(5, fold_frames_);
+  weigh_triangles_.setArg(6, triangle_weights_);
+  weigh_triangles_.setArg(7, tiltGuardCosine(options_));
+  weigh_triangles_.setArg(8, tiltGuardScale(options_));
+  weigh_triangles_.setArg(9, fold_dirty_triangles_);
+  weigh_triangles_.setArg(10, every);
+  weigh_triangles_.setArg(11, fold_flags_[0]);
+  launch(weigh_triangles_, kStrainLimit, triangle_count_);
+  weigh_folds_.setArg(0, n);
+  weigh_folds_.setArg(1, fold_offsets_);
+  weigh_folds_.setArg(2, fold_triangles_);
+  weigh_folds_.setArg(3, triangle_weights_);
+  weigh_folds_.setArg(4, fold_levels_[0]);
+  weigh_folds_.setArg(5, fold_flags_[0]);
+  weigh_folds_.setArg(6, fold_flags_[1]);
+  weigh_folds_.setArg(7, static_cast<cl_int>(rings > 0));
+  weigh_folds_.setArg(8, ring_reverse_offsets_);
+  weigh_folds_.setArg(9, ring_reverse_neighbours_);
+  weigh_folds_.setArg(10, every);
+  launch(weigh_folds_, kStrainLimit);
+  for (int r = 1; r <= rings; ++r) {
+    grow_folds_.setArg(0, n);
+    grow_folds_.setArg(1, fold_levels_[r - 1]);
+    grow_folds_.setArg(2, fold_levels_[r]);
+    grow_folds_.setArg(3, fold_flags_[r]);
+    grow_folds_.setArg(4, fold_flags_[r + 1]);
+    grow_folds_.setArg(5, static_cast<cl_int>(r < rings));
+    grow_folds_.setArg(6, ring_offsets_);
+    grow_folds_.setArg(7, ring_neighbours_);
+    grow_folds_.setArg(8, ring_reverse_offsets_);
+    grow_folds_.setArg(9, ring_reverse_neighbours_);
+    grow_folds_.setArg(10, every);
+    launch(grow_folds_, kStrainLimit);
+  }
+  commit_folds_.setArg(0, n);
+  commit_folds_.setArg(1, static_cast<cl_uint>(march_count_));
+  commit_folds_.setArg(2, fold_levels_[rings]);
+  commit_folds_.setArg(3, fold_weights_);
+  commit_folds_.setArg(4, fold_flags_[rings + 1]);
+  commit_folds_.setArg(5, active);
+  commit_folds_.setArg(6, ring_reverse_offsets_);
+  commit_folds_.setArg(7, ring_reverse_neighbours_);
+  commit_folds_.setArg(8, every);
+  launch(commit_folds_, kStrainLimit);
 }
 
 void ClSurfaceTracking::finish() {

@@ -107,19 +107,28 @@ void nearRows(const std::vector<float>& lengths, TrackingDeviceLayout* out) {
   }
 }
 
+// The transpose of compressed rows over n vertices: per vertex the
+// vertices whose rows list it, in ascending order.
+void transposeRows(int n, const std::vector<uint32_t>& offsets,
+                   const std::vector<int>& neighbours,
+                   std::vector<uint32_t>* out_offsets,
+                   std::vector<int>* out_neighbours) {
+  out_offsets->assign(n + 1, 0);
+  for (int w : neighbours) ++(*out_offsets)[w + 1];
+  for (int k = 0; k < n; ++k) (*out_offsets)[k + 1] += (*out_offsets)[k];
+  out_neighbours->resize(neighbours.size());
+  std::vector<uint32_t> fill(out_offsets->begin(), out_offsets->end() - 1);
+  for (int k = 0; k < n; ++k)
+    for (uint32_t i = offsets[k]; i < offsets[k + 1]; ++i)
+      (*out_neighbours)[fill[neighbours[i]]++] = k;
+}
+
 void reverseRows(TrackingDeviceLayout* out) {
   const int n = static_cast<int>(out->order.size());
-  const std::vector<int>& near = out->near_neighbours;
-  out->reverse_offsets.assign(n + 1, 0);
-  for (int w : near) ++out->reverse_offsets[w + 1];
-  for (int k = 0; k < n; ++k)
-    out->reverse_offsets[k + 1] += out->reverse_offsets[k];
-  out->reverse_neighbours.resize(near.size());
-  std::vector<uint32_t> fill(out->reverse_offsets.begin(),
-                             out->reverse_offsets.end() - 1);
-  for (int k = 0; k < n; ++k)
-    for (uint32_t i = out->near_offsets[k]; i < out->near_offsets[k + 1]; ++i)
-      out->reverse_neighbours[fill[near[i]]++] = k;
+  transposeRows(n, out->near_offsets, out->near_neighbours,
+                &out->reverse_offsets, &out->reverse_neighbours);
+  transposeRows(n, out->ring_offsets, out->ring_neighbours,
+                &out->ring_reverse_offsets, &out->ring_reverse_neighbours);
 }
 
 void foldRows(const TrackingMesh& mesh, TrackingDeviceLayout* out) {

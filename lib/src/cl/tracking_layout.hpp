@@ -51,6 +51,11 @@ struct TrackingDeviceLayout {
   // contact or crease vertex pushes its reach (active vertices).
   std::vector<uint32_t> reverse_offsets;
   std::vector<int> reverse_neighbours;
+  // The rings' transpose: per device index the vertices whose rings list
+  // it (where the strain limit's steps and fold checks mark what a change
+  // reaches).
+  std::vector<uint32_t> ring_reverse_offsets;
+  std::vector<int> ring_reverse_neighbours;
   // The fold guard: each triangle's corners as the device indices of their
   // representatives (#F by 3), and per device index the triangles with a
   // corner in its welded group (compressed rows, #V + 1 offsets; empty for

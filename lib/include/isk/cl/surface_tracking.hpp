@@ -127,6 +127,11 @@ class ClSurfaceTracking {
   // Over `items` work-items (-1: one per vertex).
   void launch(cl::Kernel& kernel, Stage stage, int items = -1);
   void limitStrainSteps(int steps);  // limitStrain() with `steps` steps
+  // One fold check of the strain limit's steps on `offsets` (all: every
+  // triangle and vertex, else what changed since the last check); the
+  // vertices whose weight changed and their ring are marked in `active`.
+  void checkFolds(const cl::Buffer& offsets, bool all,
+                  const cl::Buffer& active);
   void restoreVolumeWith(bool contact_bulge);  // restoreVolume()'s work
   void addTime(Stage stage, double ms);
   void collectTimes();
@@ -236,18 +241,21 @@ class ClSurfaceTracking {
   int beta_current_ = 0;          // beta_[beta_current_]: the last diffusion's
   cl::Buffer fallback_normals_;   // begin's skinned normals (a handle)
   cl::Buffer skinned_positions_;  // begin's skinned positions (a handle)
-  // The strain limit's offsets (float triples) and moved flags (uchar),
-  // ping-pong.
-  cl::Buffer strain_offsets_buffers_[2], strain_moved_[2];
+  // The strain limit's offsets (float triples) and active marks (uchar per
+  // vertex), ping-pong; the rings' transpose (tracking_layout.hpp).
+  cl::Buffer strain_offsets_buffers_[2], strain_active_[2];
+  cl::Buffer ring_reverse_offsets_, ring_reverse_neighbours_;
   // The fold guard: the layout's fold rows (TrackingDeviceLayout), the
   // triangles' frames (two float4 each) and weights of the frame, the
-  // vertices' weights the steps read, two scratch buffers (float per
-  // vertex) a check computes them in, and whether a vertex's offset changed
-  // since the last check (uchar per vertex: the next check weighs only its
-  // triangles). The frames depend on the skinned mesh alone: computed once
-  // a frame (fold_frames_posed_, reset by begin()).
+  // vertices' weights the steps read, the levels a check computes them in
+  // (fold_rings + 1 rows of a float per vertex, kept between checks), and
+  // the marks of what changed since (a uchar per triangle, set by the steps;
+  // a uchar per vertex for each level and for the commit; fold_guard.cl).
+  // The frames depend on the skinned mesh alone: computed once a frame
+  // (fold_frames_posed_, reset by begin()).
   cl::Buffer fold_corners_, fold_offsets_, fold_triangles_, fold_frames_,
-      triangle_weights_, fold_weights_, fold_scratch_[2], fold_changed_;
+      triangle_weights_, fold_weights_, fold_dirty_triangles_;
+  std::vector<cl::Buffer> fold_levels_, fold_flags_;
   bool fold_frames_posed_ = false;
   // Volume restoration: the layout's volume rows (TrackingDeviceLayout),
   // the chunks' sums, the groups' fractions, missing volumes and secant
