@@ -75,13 +75,14 @@ ClSurfaceTracking::ClSurfaceTracking(ClFieldEvaluation& fields,
 }
 
 void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
-  // The projection samples the fields: it is built with their storage
-  // options and the broad phase's; the other stages read positions and
-  // rings only.
-  cl::Program project = context_->program(
-      "tracking/project", fields.buildOptions() + " -DISK_NEIGHBOUR_CELLS=" +
-                              std::to_string(cells_per_axis_) +
-                              (lane_tests_ ? " -DISK_LANE_TESTS=1" : ""));
+  // The projection and the contact bulge's probe sample the fields: they
+  // are built with their storage options and the broad phase's; the other
+  // stages read positions and rings only.
+  const std::string sampling_options =
+      fields.buildOptions() +
+      " -DISK_NEIGHBOUR_CELLS=" + std::to_string(cells_per_axis_) +
+      (lane_tests_ ? " -DISK_LANE_TESTS=1" : "");
+  cl::Program project = context_->program("tracking/project", sampling_options);
   cl::Program relax = context_->program("tracking/relax");
   cl::Program smooth = context_->program("tracking/smooth");
   cl::Program strain_limit = context_->program("tracking/strain_limit");
@@ -118,7 +119,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   bulge_weights_ = cl::Kernel(restore, "track_bulge_weights");
   bulge_fractions_kernel_ = cl::Kernel(restore, "track_bulge_fractions");
   bulge_clearance_ = cl::Kernel(
-      context_->program("tracking/bulge_clearance", fields.buildOptions()),
+      context_->program("tracking/bulge_clearance", sampling_options),
       "track_bulge_clearance");
 }
 
@@ -843,6 +844,9 @@ void ClSurfaceTracking::restoreVolumeWith(bool contact_bulge) {
       bulge_clearance_.setArg(9, iso_values_);
       bulge_clearance_.setArg(
           10, options_.contact_bulge_clearance * options_.contact_bulge);
+      bulge_clearance_.setArg(11, beta_[beta_current_]);
+      bulge_clearance_.setArg(12, volume_near_);
+      setContactArgs(bulge_clearance_, ISK_BULGE_CLEARANCE_ARG_CONTACT);
       fields_->setFieldArgs(bulge_clearance_, ISK_BULGE_CLEARANCE_ARG_FIELDS);
       if (!detail::tuningOf(options_).occupied_cells)
         bulge_clearance_.setArg(
