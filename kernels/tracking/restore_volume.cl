@@ -79,50 +79,63 @@ __kernel void track_bulge_band_grow(
   next[v] = b;
 }
 
-// Each chunk's vertices' weights (volumeRestoreWeight: the inward move from
+// Each listed vertex's weight (volumeRestoreWeight: the inward move from
 // the skinned position along the skinned normal times its sign (outward),
 // times 1 - gamma, of the converged vertices where beta = 0, faded by the
-// share of their ring that moves too; 0 for the others), written per
-// vertex, and their sum weighted by the vertices' rest areas.
+// share of their ring that moves too; 0 for the others), one work-item per
+// entry of the groups' vertex lists.
 __kernel void track_restore_weights(
-    const uint chunk_count, __global const int4* chunks,
-    __global const int* entries, __global const uchar* states,
-    __global const float2* beta, __global const float* positions,
-    __global const float* skinned, __global const float* skinned_normals,
-    __global const int* source, __global const float* areas,
+    const uint entry_count, __global const int* entries,
+    __global const uchar* states, __global const float2* beta,
+    __global const float* positions, __global const float* skinned,
+    __global const float* skinned_normals, __global const int* source,
     __global const float* signs, __global const int* groups,
     __global const uint* ring_offsets, __global const int* ring_neighbours,
-    __global float* weights, __global float* chunk_weighted) {
+    __global float* weights) {
+  const uint e = get_global_id(0);
+  if (e >= entry_count) return;
+  const int v = entries[e];
+  const float2 bc = beta[v];
+  float w = 0.0f;
+  if (states[v] == ISK_TRACK_CONVERGED && !(bc.x > 0.0f)) {
+    const float3 n = vload3(source[v], skinned_normals);
+    const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+    if (length > 0.0f && isfinite(length)) {
+      const float3 d = vload3(v, positions) - vload3(source[v], skinned);
+      const float inward =
+          -signs[v] * (d.x * n.x + d.y * n.y + d.z * n.z) / length;
+      if (inward > 0.0f) w = inward * (1.0f - bc.y);
+    }
+  }
+  if (w > 0.0f) {
+    const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
+    int moving = 0;
+    for (uint i = begin; i < end; ++i) {
+      const int u = ring_neighbours[i];
+      moving += states[u] == ISK_TRACK_CONVERGED && !(beta[u].x > 0.0f) &&
+                groups[u] >= 0;
+    }
+    if (end > begin) w *= (float)moving / (float)(end - begin);
+  }
+  weights[v] = w;
+}
+
+// Each chunk's sum of its vertices' weights (track_restore_weights) times
+// their rest areas, in the chunk's order (track_restore_fractions adds the
+// chunks up).
+__kernel void track_restore_weighted(const uint chunk_count,
+                                     __global const int4* chunks,
+                                     __global const int* entries,
+                                     __global const float* areas,
+                                     __global const float* weights,
+                                     __global float* chunk_weighted) {
   const uint k = get_global_id(0);
   if (k >= chunk_count) return;
   const int4 chunk = chunks[k];
   float sum = 0.0f;
   for (int e = chunk.y; e < chunk.z; ++e) {
     const int v = entries[e];
-    const float2 bc = beta[v];
-    float w = 0.0f;
-    if (states[v] == ISK_TRACK_CONVERGED && !(bc.x > 0.0f)) {
-      const float3 n = vload3(source[v], skinned_normals);
-      const float length = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-      if (length > 0.0f && isfinite(length)) {
-        const float3 d = vload3(v, positions) - vload3(source[v], skinned);
-        const float inward =
-            -signs[v] * (d.x * n.x + d.y * n.y + d.z * n.z) / length;
-        if (inward > 0.0f) w = inward * (1.0f - bc.y);
-      }
-    }
-    if (w > 0.0f) {
-      const uint begin = ring_offsets[v], end = ring_offsets[v + 1];
-      int moving = 0;
-      for (uint i = begin; i < end; ++i) {
-        const int u = ring_neighbours[i];
-        moving += states[u] == ISK_TRACK_CONVERGED && !(beta[u].x > 0.0f) &&
-                  groups[u] >= 0;
-      }
-      if (end > begin) w *= (float)moving / (float)(end - begin);
-    }
-    weights[v] = w;
-    sum += w * areas[v];
+    sum += weights[v] * areas[v];
   }
   chunk_weighted[k] = sum;
 }

@@ -111,6 +111,7 @@ void ClSurfaceTracking::buildKernels(const ClFieldEvaluation& fields) {
   cl::Program restore = context_->program("tracking/restore_volume");
   volume_chunks_ = cl::Kernel(restore, "track_volume_chunks");
   restore_weights_ = cl::Kernel(restore, "track_restore_weights");
+  restore_weighted_ = cl::Kernel(restore, "track_restore_weighted");
   restore_fractions_ = cl::Kernel(restore, "track_restore_fractions");
   restore_apply_ = cl::Kernel(restore, "track_restore_apply");
   restore_correct_ = cl::Kernel(restore, "track_restore_correct");
@@ -163,6 +164,8 @@ void ClSurfaceTracking::uploadLayout(
       static_cast<int>(layout.volume_triangle_chunks.size() / 4);
   volume_vertex_chunks_count_ =
       static_cast<int>(layout.volume_vertex_chunks.size() / 4);
+  volume_vertex_entries_count_ =
+      static_cast<int>(layout.volume_vertices.size());
   volume_corners_ = uploadReadOnly(*context_, layout.volume_corners, &bytes_);
   volume_origins_ = uploadReadOnly(*context_, layout.volume_origins, &bytes_);
   volume_rest_ = uploadReadOnly(*context_, layout.volume_rest, &bytes_);
@@ -774,24 +777,30 @@ void ClSurfaceTracking::restoreVolumeWith(bool contact_bulge) {
     volume_chunks_.setArg(4, positions);
     volume_chunks_.setArg(5, volume_chunk_sums_[0]);
     launch(volume_chunks_, kVolume, volume_triangle_chunks_count_);
+    // Each vertex's weight, then the chunks' sums in order.
     restore_weights_.setArg(0,
-                            static_cast<cl_uint>(volume_vertex_chunks_count_));
-    restore_weights_.setArg(1, volume_vertex_chunks_);
-    restore_weights_.setArg(2, volume_vertices_);
-    restore_weights_.setArg(3, states_);
-    restore_weights_.setArg(4, beta_[beta_current_]);
-    restore_weights_.setArg(5, positions);
-    restore_weights_.setArg(6, skinned_positions_);
-    restore_weights_.setArg(7, fallback_normals_);
-    restore_weights_.setArg(8, begin_source_);
-    restore_weights_.setArg(9, volume_areas_);
-    restore_weights_.setArg(10, volume_signs_);
-    restore_weights_.setArg(11, volume_groups_);
-    restore_weights_.setArg(12, ring_offsets_);
-    restore_weights_.setArg(13, ring_neighbours_);
-    restore_weights_.setArg(14, restore_weights_buffer_);
-    restore_weights_.setArg(15, volume_chunk_sums_[1]);
-    launch(restore_weights_, kVolume, volume_vertex_chunks_count_);
+                            static_cast<cl_uint>(volume_vertex_entries_count_));
+    restore_weights_.setArg(1, volume_vertices_);
+    restore_weights_.setArg(2, states_);
+    restore_weights_.setArg(3, beta_[beta_current_]);
+    restore_weights_.setArg(4, positions);
+    restore_weights_.setArg(5, skinned_positions_);
+    restore_weights_.setArg(6, fallback_normals_);
+    restore_weights_.setArg(7, begin_source_);
+    restore_weights_.setArg(8, volume_signs_);
+    restore_weights_.setArg(9, volume_groups_);
+    restore_weights_.setArg(10, ring_offsets_);
+    restore_weights_.setArg(11, ring_neighbours_);
+    restore_weights_.setArg(12, restore_weights_buffer_);
+    launch(restore_weights_, kVolume, volume_vertex_entries_count_);
+    restore_weighted_.setArg(0,
+                             static_cast<cl_uint>(volume_vertex_chunks_count_));
+    restore_weighted_.setArg(1, volume_vertex_chunks_);
+    restore_weighted_.setArg(2, volume_vertices_);
+    restore_weighted_.setArg(3, volume_areas_);
+    restore_weighted_.setArg(4, restore_weights_buffer_);
+    restore_weighted_.setArg(5, volume_chunk_sums_[1]);
+    launch(restore_weighted_, kVolume, volume_vertex_chunks_count_);
     if (bulge)
       context_->queue().enqueueFillBuffer(bulge_needed_, cl_int{0}, 0,
                                           sizeof(cl_int));

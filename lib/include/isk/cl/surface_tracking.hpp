@@ -183,9 +183,10 @@ class ClSurfaceTracking {
       limit_strain_, strain_offsets_, strain_positions_, fold_frames_kernel_,
       weigh_triangles_, weigh_folds_, grow_folds_, commit_folds_,
       copy_duplicates_, translate_, triangle_normals_kernel_, normals_kernel_,
-      volume_chunks_, restore_weights_, restore_fractions_, restore_apply_,
-      restore_correct_, untrack_, bulge_band_init_, bulge_band_grow_,
-      bulge_clearance_, bulge_weights_, bulge_fractions_kernel_;
+      volume_chunks_, restore_weights_, restore_weighted_, restore_fractions_,
+      restore_apply_, restore_correct_, untrack_, bulge_band_init_,
+      bulge_band_grow_, bulge_clearance_, bulge_weights_,
+      bulge_fractions_kernel_;
   cl::Buffer every_cell_;  // tuning's occupied_cells off: all bits set
   cl::Buffer iso_values_, representative_, rules_, kinds_, home_fields_,
       home_margins_, home_floors_, rest_creases_, crease_shifts_, partners_,
@@ -261,7 +262,7 @@ class ClSurfaceTracking {
   // the chunks' sums, the groups' fractions, missing volumes and secant
   // steps back, and the vertices' weights.
   int volume_group_count_ = 0, volume_triangle_chunks_count_ = 0,
-      volume_vertex_chunks_count_ = 0;
+      volume_vertex_chunks_count_ = 0, volume_vertex_entries_count_ = 0;
   cl::Buffer volume_corners_, volume_origins_, volume_rest_, volume_vertices_,
       volume_triangle_chunks_, volume_triangle_chunk_offsets_,
       volume_vertex_chunks_, volume_vertex_chunk_offsets_, volume_groups_,
