@@ -3605,6 +3605,27 @@ TEST(ImplicitSkinner, UngatedCreaseFramesMatchTheReferenceOnAssets) {
   }
 }
 
+// The blend and bulge pairs reach the projection's sampler, which composes
+// them from the samples its cell list took (sample_tracking): frames with
+// either operator at every joint match the reference's. The procedural rigs'
+// default composition has no such pair.
+TEST(ImplicitSkinner, BlendAndBulgeFramesMatchTheReferenceOnProceduralRigs) {
+  for (const CompositionOperator op :
+       {CompositionOperator::kBlend, CompositionOperator::kBulge}) {
+    SCOPED_TRACE(compositionOperatorName(op));
+    ImplicitFieldsOptions fields_options;
+    fields_options.composition.default_operator = op;
+    for (const std::string& name : builtinRigNames()) {
+      SCOPED_TRACE(name);
+      const Rig& rig = test::rigNamed(name);
+      const auto fields = std::make_shared<const ImplicitFields>(
+          buildImplicitFields(rig, fields_options));
+      ASSERT_FALSE(fields->composition.blended_pairs.empty());
+      checkFrames(rig, fields, 4);
+    }
+  }
+}
+
 // A volume restoration other than the default (1: at most the inward
 // moves given back) reaches the kernels: its frames match the reference's.
 TEST(ImplicitSkinner, ContactBulgeFramesMatchTheReference) {
