@@ -66,12 +66,15 @@
 // pair composes what it would have sampled again. `capacity` 0: none kept.
 // With `keep_bounds` (ISK_CONTACT_PAIR_BOUNDS), a field skipped by its value
 // bound is kept as that bound, negated (samples are never negative).
+// `complete` while every listed field that passed the sphere and grid tests
+// was kept: a field not kept is then zero at the point (see pair_sample).
 #define ISK_PAIR_CACHE 16
 typedef struct {
   uint fields[ISK_PAIR_CACHE];
   float4 samples[ISK_PAIR_CACHE];
   int count, capacity;
   int keep_bounds;
+  int complete;
 } PairCache;
 
 ISK_INLINE void keep_sample(PairCache* cache, const uint field,
@@ -80,14 +83,20 @@ ISK_INLINE void keep_sample(PairCache* cache, const uint field,
     cache->fields[cache->count] = field;
     cache->samples[cache->count] = s;
     ++cache->count;
+  } else {
+    cache->complete = 0;
   }
 }
 
-// Field `field` at x: the kept sample, else sampled.
+// Field `field` at x: the kept sample; else 0 where the cache is complete
+// (the field is not listed in the point's cell, so it cannot be non-zero
+// there, or it failed the sphere or grid test, where sample_field_culled
+// gives 0 too); else sampled.
 ISK_INLINE float4 pair_sample(ISK_FIELD_PARAMS, const PairCache* cache,
                               const uint field, const float3 x) {
   for (int n = 0; n < cache->count; ++n)
     if (cache->fields[n] == field) return cache->samples[n];
+  if (cache->complete) return (float4)(0.0f);
   return sample_field_culled(field_data, field_params, field_cells, field,
                              resolution, x);
 }
@@ -194,6 +203,7 @@ ISK_INLINE float4 sample_tracking(ISK_FIELD_PARAMS, ISK_COMPOSITION_PARAMS,
     cache.count = 0;
     cache.capacity = pairs_end > pairs_begin ? ISK_PAIR_CACHE : 0;
     cache.keep_bounds = contact_flags & ISK_CONTACT_PAIR_BOUNDS;
+    cache.complete = 1;
 #if ISK_LANE_TESTS
     // The listed fields' sphere and grid tests eight at a time: the home
     // field's neighbourhood in chunks of 8 lanes (lane_params, the list's
