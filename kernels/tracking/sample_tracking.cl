@@ -67,7 +67,8 @@
 // With `keep_bounds` (ISK_CONTACT_PAIR_BOUNDS), a field skipped by its value
 // bound is kept as that bound, negated (samples are never negative).
 // `complete` while every listed field that passed the sphere and grid tests
-// was kept: a field not kept is then zero at the point (see pair_sample).
+// was kept (as its sample, or as its bound): a field not kept is then zero
+// at the point (see pair_sample).
 #define ISK_PAIR_CACHE 16
 typedef struct {
   uint fields[ISK_PAIR_CACHE];
@@ -123,8 +124,11 @@ ISK_INLINE void take_listed_field(
       const float bound = (float)b * (1.0f / 255.0f);
       if (bound < fmax(best->x, home_sample.x) &&
           ((entry & ISK_NEIGHBOUR_PARTNER) || bound <= other_limit)) {
+        // Not kept, the field may be non-zero: a pair samples it again.
         if (cache->keep_bounds)
           keep_sample(cache, i, (float4)(-bound, 0.0f, 0.0f, 0.0f));
+        else
+          cache->complete = 0;
         return;  // changes nothing (see sample_tracking)
       }
     }
