@@ -15,8 +15,11 @@ Every case (a shared asset with its first clip, and the procedural bends of
 blend and bulge at every joint; the numbers
 come from the JSON reports isk-skin writes (`quality` section), the targets
 are evaluated here, and `isk-frame-pictures` draws the worst frame of the
-implicit run beside LBS and DQS. A failed run is recorded with the last line
-of its stderr and never stops the script. Progress goes to stderr.
+implicit run beside LBS and DQS. Each asset's first clip is also skinned
+once more by the implicit default at isk-skin's own 30 frames a second, for
+the jitter between consecutive frames. A failed run is recorded with the
+last line of its stderr and never stops the script. Progress goes to
+stderr.
 
 Python 3 standard library only.
 """
@@ -46,6 +49,11 @@ BENDS = (60, 90, 120)
 EXTRA_BENDS = {"builtin:leg": (150,)}
 PICTURE_BEND_BUILTIN = 120
 DEFAULT_FRAMES = 12
+# The jitter measured at the animation's own rate (isk-skin's default
+# frames, 30 a second): the frames in which some vertex's jitter passes
+# these fractions of the diagonal are counted.
+POP_LARGE = 0.01
+POP_SMALL = 0.005
 MANIFEST = ".written-by-run_quality.json"
 
 # The runs of a case: key, isk-skin --method, --operator, label.
@@ -194,12 +202,18 @@ def run_command(command, env, timeout):
 
 def skin_command(exe, spec, clip, method, operator, frames, out_dir,
                  report=None, device=None):
+    """frames None: isk-skin's default (30 a second); out_dir None: no
+    frame files."""
     command = [exe, spec, "--method", method]
     if operator:
         command += ["--operator", operator]
     if clip is not None:
         command += ["--clip", clip]
-    command += ["--frames", str(frames), "--out", out_dir, "--overwrite"]
+    if frames is not None:
+        command += ["--frames", str(frames)]
+    if out_dir is not None:
+        command += ["--out", out_dir]
+    command += ["--overwrite"]
     if report:
         command += ["--report", report]
     if device:
@@ -210,7 +224,9 @@ def skin_command(exe, spec, clip, method, operator, frames, out_dir,
 def run_skin(exe, spec, clip, method, operator, frames, out_dir, report,
              env, timeout, device=None):
     """One isk-skin run: {ok, report, error, seconds, dir}."""
-    os.makedirs(out_dir, exist_ok=True)
+    if out_dir is not None:
+        os.makedirs(out_dir, exist_ok=True)
+    os.makedirs(os.path.dirname(report), exist_ok=True)
     if os.path.exists(report):
         os.remove(report)
     command = skin_command(exe, spec, clip, method, operator, frames,
@@ -792,6 +808,67 @@ def summary_section(cases):
     return lines
 
 
+RATE_HEADER = ["case", "frames", "implicit jitter max", "at frame",
+               f"frames with jitter past {POP_LARGE:.0%}",
+               f"frames with jitter past {POP_SMALL:.1%}",
+               "implicit jitter mean"]
+
+
+def rate_row(case):
+    """The row of a case's run at the clip's own rate, or None without
+    one."""
+    run = case.get("rate_run")
+    if run is None:
+        return None
+    link = f"[{case_title(case)}](#{case['slug']})"
+    if _failed(run):
+        return [link, failed_cell(run)] + [""] * (len(RATE_HEADER) - 2)
+    frames = quality_frames(run)
+    largest = [f.get("jitter_max") for f in frames]
+    means = [f.get("jitter_mean") for f in frames
+             if f.get("jitter_mean") is not None]
+    measured = [(j, k) for k, j in enumerate(largest) if j is not None]
+    if not measured:
+        return [link, fmt_count(len(frames)), "n/a", "n/a", "n/a", "n/a",
+                "n/a"]
+    worst, at = max(measured, key=lambda m: (m[0], -m[1]))
+    return [link, fmt_count(len(frames)), pct(worst), str(at),
+            fmt_count(sum(1 for j, _ in measured if j > POP_LARGE)),
+            fmt_count(sum(1 for j, _ in measured if j > POP_SMALL)),
+            pct(sum(means) / len(means) if means else None)]
+
+
+def rate_section(cases, frames):
+    """The first clips once more with the implicit default at 30 frames a
+    second: the jitter between consecutive frames, which the cases' frames,
+    far apart in time, cannot tell from a contact that comes and goes
+    between two of them."""
+    rows = [r for r in (rate_row(c) for c in cases) if r is not None]
+    if not rows:
+        return []
+    lines = ["## Jitter at the clip's own rate", "",
+             "Each asset's first clip once more, skinned by implicit "
+             "skinning with its default composition at isk-skin's default "
+             "of 30 frames a second (`isk-skin INPUT --method implicit`, "
+             f"no `--frames`). The cases below sample {frames} frames over "
+             "a whole clip, so their jitter also counts a contact that "
+             "comes and goes between two samples; here consecutive frames "
+             "are 1/30 s apart. Jitter is the second difference of each "
+             "vertex's offset from its DQS position over three consecutive "
+             "frames (DQS's own is 0 by construction): how abruptly the "
+             "frames depart from DQS's motion. A pop, a vertex that leaves "
+             "DQS's motion for one frame and comes back, shows as a large "
+             "value; so does an offset that changes fast in a fast motion. "
+             "'implicit jitter max' is the largest over the vertices and "
+             "frames (a percentage of the rest bounding-box diagonal) and "
+             "'at frame' the last of its three frames; the next two columns "
+             "count the frames in which some vertex's jitter passes "
+             f"{POP_LARGE:.0%} and {POP_SMALL:.1%} of the diagonal; "
+             "'implicit jitter mean' is the mean over the frames of each "
+             "frame's mean over the vertices. Reported, not a target.", ""]
+    return lines + table(RATE_HEADER, rows)
+
+
 def parts_line(run, count=3):
     """The parts (bones' parts) whose mean edge strain exceeds DQS's most in
     an implicit run's report (quality.parts, largest excess first), or ''."""
@@ -906,6 +983,7 @@ def render(results, images_rel="images"):
     lines = header_section(meta, cases)
     lines += measures_section(cases)
     lines += summary_section(cases)
+    lines += rate_section(cases, meta.get("frames", "?"))
     lines += ["## Cases", ""]
     for case in cases:
         lines += case_section(case, images_rel, meta.get("pictures_note"))
@@ -1021,6 +1099,15 @@ def run_case(case, index, total, args, env, work):
         if not runs[key]["ok"]:
             log(f"    failed: {runs[key]['error']}")
     case["runs"] = runs
+    if case["clip"] is None:
+        log(f"[case {index}/{total}] {case['name']} {case['clip_label']} "
+            "implicit at 30 frames a second")
+        case["rate_run"] = run_skin(
+            args.skin, case["input"], None, "implicit", None, None, None,
+            os.path.join(case_dir, "rate.json"), env, args.timeout,
+            args.device)
+        if not case["rate_run"]["ok"]:
+            log(f"    failed: {case['rate_run']['error']}")
     for run in runs.values():
         if not _failed(run):
             case["clip_name"] = run["report"].get("clip")
@@ -1147,7 +1234,8 @@ def collect(args, argv):
     meta["seconds"] = round(time.monotonic() - started)
     # What the markdown needs of a run: no frame folders that are gone.
     for case in cases:
-        for run in case.get("runs", {}).values():
+        for run in list(case.get("runs", {}).values()) + (
+                [case["rate_run"]] if case.get("rate_run") else []):
             if not args.keep_frames:
                 run.pop("dir", None)
     return {"meta": meta, "cases": cases}, written

@@ -240,6 +240,12 @@ class Cases(unittest.TestCase):
         self.assertEqual(rq.list_assets("/nonexistent/folder"), [])
 
     def test_commands(self):
+        # The run at the clip's own rate: isk-skin's frames, no frame files.
+        self.assertEqual(
+            rq.skin_command("isk", "/d/fox.glb", None, "implicit", None,
+                            None, None, "/r.json"),
+            ["isk", "/d/fox.glb", "--method", "implicit", "--overwrite",
+             "--report", "/r.json"])
         self.assertEqual(
             rq.skin_command("isk", "builtin:arm", "bend:60", "implicit",
                             "blend", 12, "/o", "/r.json"),
@@ -266,10 +272,14 @@ class Render(unittest.TestCase):
     def results(self):
         good = make_case_with_runs()
         good["picture_file"], good["picture_frame"] = "cesiumman-clip0.png", 2
+        # Jitter from the third frame: pops of 3%, 0.6%, 1.5%.
+        good["rate_run"] = ok([frame(), frame(), frame(jitter=0.006),
+                               frame(jitter=0.03), frame(jitter=0.015)])
         bad = make_case_with_runs(
             "fox.glb", "bend:90",
             imp=ok([frame(new=9, volume=0.5, strain_mean=0.5)] * 3,
                    rest_pose_error=1e-3))
+        bad["rate_run"] = failed()
         skipped = rq.make_case("/data/human-female.glb", "bend:90", False)
         skipped["runs"], skipped["skipped"] = {}, "the same as its first clip"
         return {"meta": {"date": "2026-01-01 00:00 UTC", "commit": "abc1234",
@@ -293,8 +303,18 @@ class Render(unittest.TestCase):
                       text)
         self.assertIn("Not run: the same as its first clip.", text)
         self.assertIsNone(re.search(r"\b(nan|inf|None)\b", text))
+        # The run at the clip's own rate: only the case that has one.
+        rate = text.split("## Jitter at the clip's own rate", 1)[1]
+        rate = rate.split("## Cases", 1)[0]
+        self.assertIn("| [CesiumMan.glb, first clip 'walk'](#cesiumman-clip0)"
+                      " | 5 | 3.00% | 3 | 2 | 3 | 0.85% |", rate)
+        self.assertIn("| [fox.glb, procedural bend 90 degrees](#fox-bend90) "
+                      "| failed: isk-skin: error: frame 3: vertex 7 is not "
+                      "finite |  |  |  |  |  |", rate)
+        self.assertNotIn("human-female", rate)
         # The summary rows: CesiumMan meets all 5, the fox none.
-        rows = {l.split(" | ")[0]: l for l in text.splitlines()
+        summary_table = text.split("## Summary", 1)[1].split("## Jitter at", 1)[0]
+        rows = {l.split(" | ")[0]: l for l in summary_table.splitlines()
                 if l.startswith("| [")}
         cesium = rows["| [CesiumMan.glb, first clip 'walk'](#cesiumman-clip0)"]
         self.assertTrue(cesium.endswith("| 5 of 5 |"))
@@ -391,12 +411,15 @@ if a[0] == "builtin:list":
     print("builtin:cylinder"); sys.exit(0)
 opt = lambda k, d=None: a[a.index(k) + 1] if k in a else d
 method, op, clip = opt("--method"), opt("--operator"), opt("--clip")
-n, out, rep = int(opt("--frames")), opt("--out"), opt("--report")
+n, out, rep = int(opt("--frames", 31)), opt("--out"), opt("--report")
+rate = "--frames" not in a  # the run at the clip's own rate
 if op == "bulge":
     sys.stderr.write("isk-skin: building fields\nisk-skin: error: boom\n")
     sys.exit(1)
-os.makedirs(out, exist_ok=True)
-for k in range(n):
+assert rate == (out is None)
+if out:
+    os.makedirs(out, exist_ok=True)
+for k in range(n if out else 0):
     open(os.path.join(out, "frame_%04d.obj" % k), "w").write("v 0 0 0\n")
 if rep:
     bad = method == "implicit"
@@ -404,7 +427,9 @@ if rep:
                    volume_ratio=1 - 0.01 * k, edge_strain_mean=0.01,
                    edge_strain_max=0.1, contact_region_vertices=0,
                    dqs_distance_mean=0, dqs_distance_max=0.001 if bad else 0,
-                   jitter_mean=None, jitter_max=None, lost_vertices=0)
+                   jitter_mean=None if k < 2 else 0.001,
+                   jitter_max=None if k < 2 else 0.02 * (k == 5),
+                   lost_vertices=0)
               for k in range(n)]
     q = dict(volume_ratio=dict(min=1 - 0.01 * (n - 1), max=1.0),
              rest_pose_error=0.0, edge_strain=dict(mean=0.01, max=0.1),
@@ -459,6 +484,14 @@ class WholeRun(unittest.TestCase):
             self.assertIn("no clip of its own", text)
             self.assertIn("Not run: the same as its first clip", text)
             self.assertIn("failed: isk-skin: error: boom (exit 1)", text)
+            # The first clip once more at 30 frames a second (31 made-up
+            # frames, one pop of 2% at frame 5); not the bends.
+            rate = text.split("## Jitter at the clip's own rate", 1)[1]
+            rate = rate.split("## Cases", 1)[0]
+            self.assertIn("| [Clipless.glb, no clip of its own: isk-skin's "
+                          "90-degree bend](#clipless-clip0) | 31 | 2.00% | "
+                          "5 | 1 | 1 | 0.10% |", rate)
+            self.assertNotIn("bend120", rate)
             self.assertIn("](images/clipless-clip0.png)", text)
             self.assertIn("](images/builtin-cylinder-bend120.png)", text)
             self.assertEqual(sorted(os.listdir(images)),
