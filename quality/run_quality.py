@@ -811,7 +811,8 @@ def summary_section(cases):
 RATE_HEADER = ["case", "frames", "implicit jitter max", "at frame",
                f"frames with jitter past {POP_LARGE:.0%}",
                f"frames with jitter past {POP_SMALL:.1%}",
-               "implicit jitter mean"]
+               "implicit jitter mean", "state changes per frame mean",
+               "state changes max"]
 
 
 def rate_row(case):
@@ -828,14 +829,17 @@ def rate_row(case):
     means = [f.get("jitter_mean") for f in frames
              if f.get("jitter_mean") is not None]
     measured = [(j, k) for k, j in enumerate(largest) if j is not None]
+    changes = quality_of(run).get("state_changes")
+    change_cells = (["n/a", "n/a"] if not changes else
+                    [f"{changes['mean']:.1f}", fmt_count(changes["max"])])
     if not measured:
-        return [link, fmt_count(len(frames)), "n/a", "n/a", "n/a", "n/a",
-                "n/a"]
+        return ([link, fmt_count(len(frames)), "n/a", "n/a", "n/a", "n/a",
+                 "n/a"] + change_cells)
     worst, at = max(measured, key=lambda m: (m[0], -m[1]))
     return [link, fmt_count(len(frames)), pct(worst), str(at),
             fmt_count(sum(1 for j, _ in measured if j > POP_LARGE)),
             fmt_count(sum(1 for j, _ in measured if j > POP_SMALL)),
-            pct(sum(means) / len(means) if means else None)]
+            pct(sum(means) / len(means) if means else None)] + change_cells
 
 
 def rate_section(cases, frames):
@@ -865,7 +869,12 @@ def rate_section(cases, frames):
              "count the frames in which some vertex's jitter passes "
              f"{POP_LARGE:.0%} and {POP_SMALL:.1%} of the diagonal; "
              "'implicit jitter mean' is the mean over the frames of each "
-             "frame's mean over the vertices. Reported, not a target.", ""]
+             "frame's mean over the vertices. The last two columns count "
+             "the vertices whose tracking state (converged, contact, "
+             "crease, lost...) differs from the frame before's, the mean "
+             "over the frames and the largest: contacts and creases that "
+             "come and go switch the smoothing around them on and off, "
+             "which is where the frames pop. Reported, not a target.", ""]
     return lines + table(RATE_HEADER, rows)
 
 

@@ -275,6 +275,8 @@ class Render(unittest.TestCase):
         # Jitter from the third frame: pops of 3%, 0.6%, 1.5%.
         good["rate_run"] = ok([frame(), frame(), frame(jitter=0.006),
                                frame(jitter=0.03), frame(jitter=0.015)])
+        good["rate_run"]["report"]["quality"]["state_changes"] = {
+            "mean": 12.25, "max": 31}
         bad = make_case_with_runs(
             "fox.glb", "bend:90",
             imp=ok([frame(new=9, volume=0.5, strain_mean=0.5)] * 3,
@@ -307,10 +309,13 @@ class Render(unittest.TestCase):
         rate = text.split("## Jitter at the clip's own rate", 1)[1]
         rate = rate.split("## Cases", 1)[0]
         self.assertIn("| [CesiumMan.glb, first clip 'walk'](#cesiumman-clip0)"
-                      " | 5 | 3.00% | 3 | 2 | 3 | 0.85% |", rate)
+                      " | 5 | 3.00% | 3 | 2 | 3 | 0.85% | 12.2 | 31 |",
+                      rate)
+        self.assertIn("| state changes per frame mean | state changes max |",
+                      rate)
         self.assertIn("| [fox.glb, procedural bend 90 degrees](#fox-bend90) "
                       "| failed: isk-skin: error: frame 3: vertex 7 is not "
-                      "finite |  |  |  |  |  |", rate)
+                      "finite |  |  |  |  |  |  |  |", rate)
         self.assertNotIn("human-female", rate)
         # The summary rows: CesiumMan meets all 5, the fox none.
         summary_table = text.split("## Summary", 1)[1].split("## Jitter at", 1)[0]
@@ -438,6 +443,8 @@ if rep:
              dqs_distance_max=0.001 if bad else 0, jitter_max=None,
              lost_vertices_max=0, worst_frame=n - 1, measures="m",
              frames=frames)
+    if method == "implicit":
+        q["state_changes"] = dict(mean=2.0, max=4)
     json.dump(dict(frames=n, vertices=1, triangles=0, method=method,
                    clip=clip or "bend", device="reference",
                    frame_ms=dict(median=1.0), quality=q), open(rep, "w"))
@@ -490,7 +497,7 @@ class WholeRun(unittest.TestCase):
             rate = rate.split("## Cases", 1)[0]
             self.assertIn("| [Clipless.glb, no clip of its own: isk-skin's "
                           "90-degree bend](#clipless-clip0) | 31 | 2.00% | "
-                          "5 | 1 | 1 | 0.10% |", rate)
+                          "5 | 1 | 1 | 0.10% | 2.0 | 4 |", rate)
             self.assertNotIn("bend120", rate)
             self.assertIn("](images/clipless-clip0.png)", text)
             self.assertIn("](images/builtin-cylinder-bend120.png)", text)

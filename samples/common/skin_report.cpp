@@ -36,7 +36,9 @@ constexpr const char* kMeasures =
     "same pose over the rest bounding-box diagonal, of the vertices farther "
     "than 5% of the diagonal from any contact), jitter_mean/max (second "
     "difference over three frames minus DQS's, over the diagonal), "
-    "lost_vertices";
+    "lost_vertices, state_changes (implicit: vertices whose tracking state "
+    "-- converged, contact, crease, lost... -- differs from the frame "
+    "before's)";
 
 std::string partName(const PartQuality& p, const Skeleton& skeleton) {
   return p.part < skeleton.jointCount() ? skeleton.joints[p.part].name
@@ -107,6 +109,18 @@ nlohmann::json qualitySection(const Options& options, const RunResult& result,
     quality["measures"] = kMeasures;
     nlohmann::json frames = nlohmann::json::array();
     for (const FrameQuality& q : result.quality) frames.push_back(frameJson(q));
+    if (result.state_changes.size() == result.quality.size()) {
+      for (size_t i = 0; i < frames.size(); ++i)
+        frames[i]["state_changes"] =
+            result.state_changes[i] ? nlohmann::json(*result.state_changes[i])
+                                    : nlohmann::json(nullptr);
+      const std::optional<StateChangeSummary> changes =
+          summarizeStateChanges(result.state_changes);
+      quality["state_changes"] =
+          changes
+              ? nlohmann::json{{"mean", changes->mean}, {"max", changes->max}}
+              : nlohmann::json(nullptr);
+    }
     quality["frames"] = frames;
     nlohmann::json parts = nlohmann::json::array();
     for (const PartQuality& p : partsByExcessStrain(summary)) {
@@ -289,6 +303,11 @@ std::string formatRunSummary(const Options& options,
   }
   if (!result.contact_vertices.empty()) {
     out << "; contact vertices median " << medianCount(result.contact_vertices);
+  }
+  if (const std::optional<StateChangeSummary> changes =
+          summarizeStateChanges(result.state_changes)) {
+    out << "; tracking state changes per frame mean " << changes->mean
+        << ", max " << changes->max;
   }
   if (!options.out_dir.empty()) {
     out << "; wrote " << result.files.size() << " files to " << options.out_dir;

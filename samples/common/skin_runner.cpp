@@ -421,6 +421,32 @@ double medianCount(const std::vector<int>& counts) {
   return summarize(std::vector<double>(counts.begin(), counts.end())).median;
 }
 
+int changedStates(const std::vector<TrackState>& before,
+                  const std::vector<TrackState>& after) {
+  if (before.size() != after.size())
+    throw Error(ErrorCode::kInvalidArgument,
+                "changedStates: " + std::to_string(before.size()) + " and " +
+                    std::to_string(after.size()) + " states");
+  int changed = 0;
+  for (size_t v = 0; v < before.size(); ++v) changed += before[v] != after[v];
+  return changed;
+}
+
+std::optional<StateChangeSummary> summarizeStateChanges(
+    const std::vector<std::optional<int>>& changes) {
+  StateChangeSummary summary;
+  int frames = 0;
+  for (const std::optional<int>& c : changes) {
+    if (!c) continue;
+    summary.mean += *c;
+    summary.max = std::max(summary.max, *c);
+    ++frames;
+  }
+  if (frames == 0) return std::nullopt;
+  summary.mean /= frames;
+  return summary;
+}
+
 CountTotals countTotals(const std::vector<int>& counts) {
   CountTotals totals;
   for (const int count : counts) {
@@ -494,7 +520,7 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
       dqs_reference.emplace(mesh, rig.weights, skeleton.jointCount());
     }
   }
-  std::vector<TrackState> states;
+  std::vector<TrackState> states, last_states;
   std::vector<uint8_t> contacts;
   // Ends the progress line before an error message goes out.
   struct ProgressLine {
@@ -552,6 +578,11 @@ RunResult runFrames(const Rig& rig, const AnimationClip& clip,
                         states[v] == TrackState::kCrease;
           lost += states[v] == TrackState::kLost;
         }
+        result.state_changes.push_back(
+            last_states.size() == states.size()
+                ? std::optional<int>(changedStates(last_states, states))
+                : std::nullopt);
+        last_states = states;
       }
       result.quality.push_back(quality->measure(
           positions, dqs_reference ? &dqs_reference->positions() : nullptr,

@@ -198,6 +198,12 @@ struct RunResult {
   std::vector<FrameQuality> quality;
   std::vector<int> self_intersections;
   std::vector<int> contact_vertices;
+  // Per frame, implicit with the quality measured: the vertices whose
+  // tracking state (converged, contact, crease, lost, ...) differs from the
+  // frame before's; unset on the first frame, which has none before it.
+  // Contacts and creases that come and go switch the smoothing around them
+  // on and off: where the frames pop.
+  std::vector<std::optional<int>> state_changes;
   // Intersecting pairs of the rest pose (when quality was measured).
   int rest_self_intersections = 0;
   double rest_volume = 0;
@@ -233,6 +239,20 @@ struct CountTotals {
   long long total = 0;
 };
 CountTotals countTotals(const std::vector<int>& counts);
+
+// How many vertices' tracking states differ between two frames' (both of
+// the mesh's vertex count).
+int changedStates(const std::vector<TrackState>& before,
+                  const std::vector<TrackState>& after);
+
+// Mean and largest of the per-frame state changes that are set; unset
+// when none is.
+struct StateChangeSummary {
+  double mean = 0;
+  int max = 0;
+};
+std::optional<StateChangeSummary> summarizeStateChanges(
+    const std::vector<std::optional<int>>& changes);
 
 // Places `tracks` side by side along x in their order, centred on the
 // middle one, isk::gltfTrackSpacing (over every frame of every track)

@@ -286,6 +286,22 @@ TEST(IskSkinTest, ImplicitMethodReportsStagesSelfIntersectionsAndContacts) {
             quality["self_intersections"]["max"].get<int>());
   ASSERT_TRUE(quality.contains("contact_vertices")) << quality;
   EXPECT_GE(quality["contact_vertices"].get<double>(), 0);
+  // The fold forms as the cylinder bends: vertices go from converged to
+  // contacts and creases between the frames; none before the first.
+  ASSERT_EQ(quality["frames"].size(), 6u) << quality;
+  EXPECT_TRUE(quality["frames"][0]["state_changes"].is_null());
+  int changes = 0, most = 0;
+  for (size_t i = 1; i < 6; ++i) {
+    const int c = quality["frames"][i]["state_changes"].get<int>();
+    EXPECT_GE(c, 0);
+    EXPECT_LE(c, report["vertices"].get<int>());
+    changes += c;
+    most = std::max(most, c);
+  }
+  EXPECT_GT(changes, 0);
+  EXPECT_EQ(quality["state_changes"]["max"].get<int>(), most);
+  EXPECT_DOUBLE_EQ(quality["state_changes"]["mean"].get<double>(),
+                   changes / 5.0);
   // The bind pose comes back unchanged.
   EXPECT_LT(quality["rest_pose_error"].get<double>(), 1e-5);
   expectObjFrames(dir.path() / "frames", 6, report["vertices"].get<int>());

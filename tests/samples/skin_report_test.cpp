@@ -111,6 +111,49 @@ TEST(IskSkinReport, ImplicitMethodAddsContactsAndTracking) {
   EXPECT_FALSE(report["implicit"].contains("relaxation_weights"));
 }
 
+// Per frame and summarized: how many vertices changed tracking state since
+// the frame before (none before the first).
+TEST(IskSkinReport, ImplicitMethodReportsStateChanges) {
+  const Rig rig = makeBuiltinRig("cylinder");
+  Options options = madeUpOptions("implicit");
+  RunResult result = madeUpResult();
+  result.quality.resize(3);
+  result.state_changes = {std::nullopt, 4, 8};
+  const nlohmann::json report =
+      samples::skin::makeReport(options, rig, "bend", {}, {}, result, nullptr);
+  const nlohmann::json& quality = report["quality"];
+  ASSERT_EQ(quality["frames"].size(), 3u) << quality;
+  EXPECT_TRUE(quality["frames"][0]["state_changes"].is_null());
+  EXPECT_EQ(quality["frames"][1]["state_changes"], 4);
+  EXPECT_EQ(quality["frames"][2]["state_changes"], 8);
+  EXPECT_EQ(quality["state_changes"]["mean"], 6.0);
+  EXPECT_EQ(quality["state_changes"]["max"], 8);
+  EXPECT_NE(quality["measures"].get<std::string>().find("state_changes"),
+            std::string::npos);
+  EXPECT_NE(samples::skin::formatRunSummary(options, "bend", "reference (CPU)",
+                                            result)
+                .find("; tracking state changes per frame mean 6, max 8"),
+            std::string::npos);
+
+  // One frame: nothing to compare, so no summary.
+  result.quality.resize(1);
+  result.state_changes = {std::nullopt};
+  const nlohmann::json one =
+      samples::skin::makeReport(options, rig, "bend", {}, {}, result, nullptr);
+  EXPECT_TRUE(one["quality"]["state_changes"].is_null());
+  EXPECT_EQ(samples::skin::formatRunSummary(options, "bend", "reference (CPU)",
+                                            result)
+                .find("state changes"),
+            std::string::npos);
+
+  // Skinning alone has no tracking states.
+  result.state_changes.clear();
+  const nlohmann::json dqs = samples::skin::makeReport(
+      madeUpOptions("dqs"), rig, "bend", {}, {}, result, nullptr);
+  EXPECT_FALSE(dqs["quality"].contains("state_changes"));
+  EXPECT_FALSE(dqs["quality"]["frames"][0].contains("state_changes"));
+}
+
 TEST(IskSkinReport, ImplicitFieldsSectionWithAndWithoutDrift) {
   const Rig& rig = test::rigNamed("arm");
   const ImplicitFields& fields = test::implicitFieldsOf("arm");

@@ -1,7 +1,8 @@
 // What isk-skin and the demo share besides the frame loop
 // (samples/common/skin_runner.hpp), without a device: builtin inputs, the
 // parameter file beside an asset, same-file checks, counts per frame summed
-// up, and the side-by-side layout of the animated glTF.
+// up, tracking state changes between frames, and the side-by-side layout of
+// the animated glTF.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -70,6 +71,31 @@ TEST(SkinRunnerHelpers, CountsPerFrameSumUp) {
   const samples::CountTotals none = samples::countTotals({});
   EXPECT_EQ(none.max, 0);
   EXPECT_EQ(none.total, 0);
+}
+
+TEST(SkinRunnerHelpers, StateChangesCountVerticesWhoseStateDiffers) {
+  using S = TrackState;
+  const std::vector<S> before = {S::kConverged, S::kContact, S::kCrease,
+                                 S::kUntracked, S::kLost};
+  const std::vector<S> after = {S::kContact, S::kContact, S::kConverged,
+                                S::kUntracked, S::kLost};
+  EXPECT_EQ(samples::changedStates(before, before), 0);
+  EXPECT_EQ(samples::changedStates(before, after), 2);
+  EXPECT_EQ(samples::changedStates(after, before), 2);
+  try {
+    samples::changedStates(before, {S::kContact});
+    ADD_FAILURE() << "states of two sizes were compared";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("5 and 1 states"), std::string::npos)
+        << e.what();
+  }
+  // The first frame has no frame before it: left out of the summary.
+  const auto summary = samples::summarizeStateChanges({std::nullopt, 4, 8, 0});
+  ASSERT_TRUE(summary.has_value());
+  EXPECT_DOUBLE_EQ(summary->mean, 4.0);
+  EXPECT_EQ(summary->max, 8);
+  EXPECT_FALSE(samples::summarizeStateChanges({std::nullopt}).has_value());
+  EXPECT_FALSE(samples::summarizeStateChanges({}).has_value());
 }
 
 // --clip rest and --clip bend[:DEGREES] on any rig; the rig's own clip of
