@@ -7,6 +7,7 @@
 #include <stb/stb_image.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -16,6 +17,7 @@
 #include <mutex>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 #include "data_folder.hpp"
@@ -26,7 +28,7 @@
 
 namespace isk::test {
 
-const std::vector<std::string>& assetNames() {
+const std::vector<std::string>& allAssetNames() {
   static const std::vector<std::string> names = {
       "RiggedSimple.dae",     "anim_test.x",
       "CesiumMan.glb",        "human-addon-animations.glb",
@@ -34,6 +36,39 @@ const std::vector<std::string>& assetNames() {
       "quad_skin.glb",        "fox-animations.glb",
       "horse-animations.glb", "dragon-animations.glb",
       "human-female.glb"};
+  return names;
+}
+
+std::vector<std::string> assetSelection(const char* list) {
+  if (list == nullptr || *list == '\0') return allAssetNames();
+  std::vector<std::string> chosen;
+  std::stringstream stream(list);
+  for (std::string name; std::getline(stream, name, ',');) {
+    if (name.empty()) continue;
+    const std::vector<std::string>& all = allAssetNames();
+    if (std::find(all.begin(), all.end(), name) == all.end()) {
+      std::string known;
+      for (const std::string& asset : all) known += " " + asset;
+      throw std::invalid_argument(
+          std::string(kAssetSelectionVariable) + " names '" + name +
+          "', which is not a test asset; they are:" + known);
+    }
+    chosen.push_back(name);
+  }
+  return chosen;
+}
+
+std::vector<std::string> assetNames() {
+  const std::vector<std::string> chosen =
+      assetSelection(std::getenv(kAssetSelectionVariable));
+  std::vector<std::string> names;
+  for (const std::string& name : allAssetNames()) {
+    if (std::find(chosen.begin(), chosen.end(), name) != chosen.end())
+      names.push_back(name);
+    else
+      std::cout << "[ left out ] " << name << ": not in "
+                << kAssetSelectionVariable << "\n";
+  }
   return names;
 }
 

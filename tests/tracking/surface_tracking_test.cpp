@@ -1077,14 +1077,16 @@ TEST(SurfaceTracking, TiltGuardBringsSpikesDownOnAssets) {
   if (!test::haveAssets())
     GTEST_SKIP() << test::missingAssetsMessage("tilt guard on assets");
   int checked = 0;
-  for (const std::string& name : test::assetNames()) {
+  const std::vector<std::string> names = test::assetNames();
+  for (const std::string& name : names) {
     SCOPED_TRACE(name);
     const Rig& rig = test::rigNamed(name);
     std::cout << "[ tilt guard ] " << name << "\n";
     checked +=
         checkTiltGuard(rig, everyPieceTracked(name, rig), clipPoses(rig, 5)[2]);
   }
-  EXPECT_GE(checked, 3);
+  // Three of the eleven assets make the spike; a narrowed run at least one.
+  EXPECT_GE(checked, names.size() == test::allAssetNames().size() ? 3 : 1);
 }
 
 // A coarse arm (a few hundred vertices, the failure class of the shared
